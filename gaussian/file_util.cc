@@ -1,0 +1,93 @@
+#include "gaussian/file_util.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "gaussian/error.h"
+
+namespace watergs {
+namespace {
+
+std::string TemporaryPathFor(const std::string& path) {
+  std::random_device rd;
+  std::ostringstream name;
+  name << path << ".tmp." << ::getpid() << "." << std::hex << rd();
+  return name.str();
+}
+
+void FsyncPath(const std::string& path, int flags) {
+  const int fd = ::open(path.c_str(), flags);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+}  // namespace
+
+std::vector<uint8_t> ReadFileBytes(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) FailAt(path, "file not found");
+  if (std::filesystem::is_directory(path, ec)) {
+    FailAt(path, "is a directory, expected a file");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) FailAt(path, std::string("cannot open: ") + std::strerror(errno));
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                             std::istreambuf_iterator<char>());
+  if (in.bad()) FailAt(path, "read error");
+  return bytes;
+}
+
+void AtomicWriteFile(const std::string& path,
+                     const std::function<void(std::ostream&)>& writer) {
+  const std::filesystem::path target(path);
+  const std::filesystem::path dir =
+      target.has_parent_path() ? target.parent_path() : ".";
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) {
+    FailAt(path, "output folder " + dir.string() + " does not exist");
+  }
+  const std::string tmp = TemporaryPathFor(path);
+  try {
+    {
+      std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+      if (!out) {
+        FailAt(path, std::string("cannot write: ") + std::strerror(errno));
+      }
+      writer(out);
+      out.flush();
+      if (!out) {
+        FailAt(path, std::string("write failed (disk full?): ") +
+                         std::strerror(errno));
+      }
+    }
+    FsyncPath(tmp, O_RDONLY);
+    std::filesystem::rename(tmp, target, ec);
+    if (ec) FailAt(path, "cannot rename temporary into place: " + ec.message());
+    FsyncPath(dir.string(), O_RDONLY | O_DIRECTORY);
+  } catch (...) {
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
+}
+
+void AtomicWriteFile(const std::string& path, const std::string& bytes) {
+  AtomicWriteFile(path, [&](std::ostream& out) {
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  });
+}
+
+void CreateDirectories(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::create_directories(path, ec);
+  if (ec) FailAt(path, "cannot create folder: " + ec.message());
+}
+
+}  // namespace watergs

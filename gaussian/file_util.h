@@ -1,0 +1,28 @@
+// File helpers: whole-file reads and crash-safe (atomic) writes.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+namespace watergs {
+
+// Reads a whole file; throws Error("<path>: ...") if missing or unreadable.
+std::vector<uint8_t> ReadFileBytes(const std::string& path);
+
+// Writes `path` atomically: `writer` fills a temporary file in the same
+// folder, which is flushed, fsync'ed and renamed over `path`. If `writer`
+// throws or any write fails, the temporary is removed, `path` is untouched
+// and Error("<path>: ...") is thrown.
+void AtomicWriteFile(const std::string& path,
+                     const std::function<void(std::ostream&)>& writer);
+
+// Convenience overload for an in-memory buffer.
+void AtomicWriteFile(const std::string& path, const std::string& bytes);
+
+// Creates a directory and its parents; throws Error on failure.
+void CreateDirectories(const std::string& path);
+
+}  // namespace watergs

@@ -1,0 +1,17 @@
+#include "gaussian/rasterizer.h"
+
+namespace watergs {
+
+void GaussianGradients::Reset(size_t n, int rest_stride) {
+  auto zero = [](std::vector<float>& v, size_t size) { v.assign(size, 0.f); };
+  zero(means, n * 3);
+  zero(log_scales, n * 3);
+  zero(quats, n * 4);
+  zero(opacity_logits, n);
+  zero(sh_dc, n * 3);
+  zero(sh_rest, n * static_cast<size_t>(rest_stride));
+  zero(mean2d_grad_norm, n);
+  visible.assign(n, 0);
+}
+
+}  // namespace watergs

@@ -1,0 +1,69 @@
+// The differentiable rasterizer's public interface. Training, watermark
+// embedding and extraction use the rasterizer only through this header; the
+// CPU implementation (cpu_rasterizer.h) and a future CUDA one implement it.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <vector>
+
+#include "gaussian/camera.h"
+#include "gaussian/gaussian_model.h"
+#include "gaussian/image.h"
+
+namespace watergs {
+
+// A pixel rectangle [x0, x0 + width) x [y0, y0 + height) of the full frame.
+struct PixelRect {
+  int x0 = 0, y0 = 0, width = 0, height = 0;
+  bool empty() const { return width <= 0 || height <= 0; }
+};
+
+struct RenderOptions {
+  // Colour composited behind the Gaussians.
+  std::array<float, 3> background = {0.f, 0.f, 0.f};
+  // SH degree used for colour (<= model.sh_degree); -1 means model.sh_degree.
+  int active_sh_degree = -1;
+  // Region of the frame to render; empty means the whole frame. The output
+  // image then has the rectangle's size and the cost scales with its area.
+  PixelRect rect;
+};
+
+// Gradients of a scalar loss with respect to every model array, same shapes
+// as GaussianModel, plus what density control needs.
+struct GaussianGradients {
+  std::vector<float> means, log_scales, quats, opacity_logits, sh_dc, sh_rest;
+  // Per Gaussian: norm of dL/d(mean2d) in pixels for this view (0 if not
+  // visible), the statistic Inria accumulates for densification.
+  std::vector<float> mean2d_grad_norm;
+  // Per Gaussian: 1 if it was visible (radius > 0) in this view.
+  std::vector<uint8_t> visible;
+  // Zero-sized to n Gaussians with sh_rest stride `rest_stride`.
+  void Reset(size_t n, int rest_stride);
+};
+
+// What a forward pass keeps for its backward pass (opaque to callers).
+class RenderContext {
+ public:
+  virtual ~RenderContext() = default;
+};
+
+class Rasterizer {
+ public:
+  virtual ~Rasterizer() = default;
+  // Renders `model` from `camera`; output has the rect's size (or the frame's).
+  // `context` receives what Backward needs; may be null for render-only use.
+  virtual void Forward(const GaussianModel& model, const RenderCamera& camera,
+                       const RenderOptions& options, ImageRGB* image,
+                       std::unique_ptr<RenderContext>* context) = 0;
+  // dL/d(image) has the output image's shape; gradients are overwritten.
+  virtual void Backward(const GaussianModel& model,
+                        const RenderContext& context,
+                        const ImageRGB& grad_image,
+                        GaussianGradients* grads) = 0;
+};
+
+// The multithreaded CPU rasterizer (OpenMP over tiles).
+std::unique_ptr<Rasterizer> MakeCpuRasterizer();
+
+}  // namespace watergs

@@ -1,0 +1,50 @@
+// Entry point: `watergs <command> [options]`, dispatching to the registry.
+#include <cstring>
+#include <exception>
+#include <iostream>
+
+#include "gaussian/error.h"
+#include "plugin/command.h"
+
+namespace {
+
+void PrintCommands() {
+  std::cout << "watergs: 3D Gaussian Splatting training and WATER-GS "
+               "watermarking for COLMAP workspaces\n\n"
+               "Usage: watergs <command> [options]   (`watergs <command> -h` "
+               "for a command's options)\n\nCommands:\n";
+  for (const auto& [name, command] : watergs::CommandRegistry()) {
+    std::cout << "  " << name;
+    for (size_t i = name.size(); i < 16; ++i) std::cout << ' ';
+    std::cout << command.summary << "\n";
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || !std::strcmp(argv[1], "help") ||
+      !std::strcmp(argv[1], "-h") || !std::strcmp(argv[1], "--help")) {
+    PrintCommands();
+    return argc < 2 ? 1 : 0;
+  }
+  const auto& registry = watergs::CommandRegistry();
+  const auto it = registry.find(argv[1]);
+  if (it == registry.end()) {
+    std::cerr << "error: unknown command `" << argv[1]
+              << "` (run `watergs help` for the list)\n";
+    return 1;
+  }
+  try {
+    return it->second.run(argc - 1, argv + 1);
+  } catch (const watergs::Error& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "error: out of memory\n";
+    return 3;
+  } catch (const std::exception& e) {
+    std::cerr << "error: internal: " << e.what() << "\n";
+    return 2;
+  }
+}

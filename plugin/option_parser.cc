@@ -1,0 +1,66 @@
+#include "plugin/option_parser.h"
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "gaussian/error.h"
+
+namespace po = boost::program_options;
+
+namespace watergs {
+
+OptionParser::OptionParser(std::string command, std::string summary)
+    : command_(std::move(command)),
+      summary_(std::move(summary)),
+      options_("Options") {
+  options_.add_options()("help,h", "Print this help")(
+      "project_path", po::value<std::string>(&project_path_),
+      "An .ini file holding any of these options as `name = value`");
+}
+
+void OptionParser::AddFlag(const std::string& name, bool* value,
+                           const std::string& help) {
+  options_.add_options()(name.c_str(), po::bool_switch(value), help.c_str());
+}
+
+std::string OptionParser::Help() const {
+  std::ostringstream out;
+  out << "Usage: watergs " << command_ << " [options]\n"
+      << summary_ << "\n\n"
+      << options_;
+  return out.str();
+}
+
+bool OptionParser::Parse(int argc, char** argv) {
+  po::variables_map vm;
+  try {
+    po::store(po::parse_command_line(argc, argv, options_), vm);
+    if (vm.count("help")) {
+      std::cout << Help();
+      return false;
+    }
+    if (vm.count("project_path")) {
+      const std::string ini = vm["project_path"].as<std::string>();
+      if (!std::filesystem::is_regular_file(ini)) {
+        FailAt(ini, "project file not found");
+      }
+      std::ifstream in(ini);
+      try {
+        po::store(
+            po::parse_config_file(in, options_, /*allow_unregistered=*/false),
+            vm);
+      } catch (const po::error& e) {
+        FailAt(ini, e.what());
+      }
+    }
+    po::notify(vm);
+  } catch (const po::error& e) {
+    Fail("watergs " + command_ + ": " + e.what() + " (see `watergs " +
+         command_ + " -h`)");
+  }
+  return true;
+}
+
+}  // namespace watergs

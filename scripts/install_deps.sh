@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Installs every Debian package watergs needs to build, test and regenerate its data.
+# Idempotent: packages already present are skipped without touching the network.
+set -euo pipefail
+pkgs=(build-essential cmake git pkg-config clang-format
+  libeigen3-dev libopencv-dev libceres-dev libboost-program-options-dev
+  libgoogle-glog-dev libgtest-dev libgmock-dev nlohmann-json3-dev libnanoflann-dev libomp-dev
+  colmap)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install_deps: all ${#pkgs[@]} packages present"
+  exit 0
+fi
+echo "install_deps: installing ${missing[*]}"
+SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO=sudo
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

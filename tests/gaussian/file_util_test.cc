@@ -1,0 +1,66 @@
+#include "gaussian/file_util.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+#include "gaussian/error.h"
+
+namespace watergs {
+namespace {
+
+std::string TempDir(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("watergs_file_util_" + name + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir.string();
+}
+
+TEST(FileUtil, AtomicWriteReplacesContent) {
+  const std::string path = TempDir("replace") + "/a.bin";
+  AtomicWriteFile(path, std::string("first"));
+  AtomicWriteFile(path, std::string("second"));
+  const auto bytes = ReadFileBytes(path);
+  EXPECT_EQ(std::string(bytes.begin(), bytes.end()), "second");
+}
+
+TEST(FileUtil, FailedWriterLeavesPreviousVersionAndNoTemporary) {
+  const std::string dir = TempDir("fail");
+  const std::string path = dir + "/a.bin";
+  AtomicWriteFile(path, std::string("good"));
+  EXPECT_THROW(AtomicWriteFile(path,
+                               [](std::ostream& out) {
+                                 out << "partial";
+                                 throw std::runtime_error("writer died");
+                               }),
+               std::runtime_error);
+  const auto bytes = ReadFileBytes(path);
+  EXPECT_EQ(std::string(bytes.begin(), bytes.end()), "good");
+  int entries = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    (void)e;
+    ++entries;
+  }
+  EXPECT_EQ(entries, 1);
+}
+
+TEST(FileUtil, MissingFileNamesThePath) {
+  try {
+    ReadFileBytes("/nonexistent/watergs.bin");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/watergs.bin"),
+              std::string::npos);
+  }
+}
+
+TEST(FileUtil, MissingOutputFolderIsAnError) {
+  EXPECT_THROW(AtomicWriteFile("/nonexistent/dir/x.bin", std::string("x")),
+               Error);
+}
+
+}  // namespace
+}  // namespace watergs
