@@ -1,0 +1,38 @@
+// Progress reporting for long jobs (training, embedding, decoder training):
+// a one-line bar on stderr with rate and ETA, redrawn at most a few times a
+// second, plus free-form figures the job supplies ("loss 0.031 BER 2.1%").
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+
+namespace watergs {
+
+class ProgressBar {
+ public:
+  // `total` steps of work named `label`; `start` is the first step (resume).
+  ProgressBar(std::string label, int64_t total, int64_t start = 0);
+  // Marks step `done` complete; `status` is appended to the line.
+  void Update(int64_t done, const std::string& status = "");
+  // Prints the final line with the total time.
+  void Finish(const std::string& status = "");
+  // Seconds since construction.
+  double ElapsedSeconds() const;
+
+ private:
+  void Draw(int64_t done, const std::string& status, bool final_line);
+
+  std::string label_;
+  int64_t total_;
+  int64_t start_;
+  std::chrono::steady_clock::time_point begin_;
+  std::chrono::steady_clock::time_point last_draw_;
+  // True when stderr is a terminal: redraw in place instead of new lines.
+  bool interactive_;
+};
+
+// "1h02m", "3m05s", "12.3s".
+std::string FormatDuration(double seconds);
+
+}  // namespace watergs
