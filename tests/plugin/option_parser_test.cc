@@ -1,0 +1,99 @@
+#include "plugin/option_parser.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "gaussian/error.h"
+
+namespace watergs {
+namespace {
+
+// Holds argv storage for a parse call.
+struct Args {
+  explicit Args(std::vector<std::string> words) : strings(std::move(words)) {
+    for (auto& s : strings) pointers.push_back(s.data());
+  }
+  int argc() { return static_cast<int>(pointers.size()); }
+  char** argv() { return pointers.data(); }
+  std::vector<std::string> strings;
+  std::vector<char*> pointers;
+};
+
+TEST(OptionParser, ReadsCommandLineValues) {
+  std::string input;
+  int iterations = 7;
+  OptionParser parser("demo", "test");
+  parser.AddRequired("input_path", &input, "in");
+  parser.Add("iterations", &iterations, "n");
+  Args args({"demo", "--input_path", "x.ply", "--iterations", "42"});
+  ASSERT_TRUE(parser.Parse(args.argc(), args.argv()));
+  EXPECT_EQ(input, "x.ply");
+  EXPECT_EQ(iterations, 42);
+}
+
+TEST(OptionParser, ProjectFileFillsOptionsAndCommandLineWins) {
+  const auto ini = std::filesystem::temp_directory_path() / "watergs_opt.ini";
+  std::ofstream(ini) << "input_path = from_ini.ply\niterations = 5\n";
+  std::string input;
+  int iterations = 7;
+  OptionParser parser("demo", "test");
+  parser.AddRequired("input_path", &input, "in");
+  parser.Add("iterations", &iterations, "n");
+  Args args({"demo", "--project_path", ini.string(), "--iterations", "9"});
+  ASSERT_TRUE(parser.Parse(args.argc(), args.argv()));
+  EXPECT_EQ(input, "from_ini.ply");
+  EXPECT_EQ(iterations, 9);
+}
+
+TEST(OptionParser, MissingRequiredOptionIsAnErrorNamingIt) {
+  std::string input;
+  OptionParser parser("demo", "test");
+  parser.AddRequired("input_path", &input, "in");
+  Args args({"demo"});
+  try {
+    parser.Parse(args.argc(), args.argv());
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("input_path"), std::string::npos);
+  }
+}
+
+TEST(OptionParser, MalformedValueAndUnknownOptionAreErrors) {
+  int iterations = 1;
+  OptionParser parser("demo", "test");
+  parser.Add("iterations", &iterations, "n");
+  Args bad_value({"demo", "--iterations", "many"});
+  EXPECT_THROW(parser.Parse(bad_value.argc(), bad_value.argv()), Error);
+  OptionParser parser2("demo", "test");
+  parser2.Add("iterations", &iterations, "n");
+  Args unknown({"demo", "--iteratons", "3"});
+  EXPECT_THROW(parser2.Parse(unknown.argc(), unknown.argv()), Error);
+}
+
+TEST(OptionParser, MissingProjectFileNamesIt) {
+  OptionParser parser("demo", "test");
+  Args args({"demo", "--project_path", "/nonexistent/p.ini"});
+  try {
+    parser.Parse(args.argc(), args.argv());
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/p.ini"),
+              std::string::npos);
+  }
+}
+
+TEST(OptionParser, HelpReturnsFalse) {
+  OptionParser parser("demo", "test");
+  Args args({"demo", "-h"});
+  testing::internal::CaptureStdout();
+  EXPECT_FALSE(parser.Parse(args.argc(), args.argv()));
+  EXPECT_NE(testing::internal::GetCapturedStdout().find("Usage: watergs demo"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace watergs
