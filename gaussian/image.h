@@ -1,6 +1,7 @@
 // A float RGB image, the rasterizer's output and the losses' input.
 #pragma once
 
+#include <cstddef>
 #include <vector>
 
 namespace watergs {
