@@ -1,0 +1,127 @@
+#include "watermark/message.h"
+
+#include <cctype>
+
+#include "gaussian/error.h"
+
+namespace watergs {
+namespace {
+
+bool StartsWith(const std::string& s, const std::string& prefix) {
+  return s.compare(0, prefix.size(), prefix) == 0;
+}
+
+int HexValue(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  const char lower =
+      static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (lower >= 'a' && lower <= 'f') return lower - 'a' + 10;
+  return -1;
+}
+
+Bits ParseHex(const std::string& digits, const std::string& original) {
+  Bits bits;
+  for (char c : digits) {
+    const int v = HexValue(c);
+    if (v < 0)
+      Fail("message `" + original + "`: `" + c + "` is not a hex digit");
+    for (int b = 3; b >= 0; --b) bits.push_back((v >> b) & 1);
+  }
+  return bits;
+}
+
+Bits ParseBitString(const std::string& digits, const std::string& original) {
+  Bits bits;
+  for (char c : digits) {
+    if (c != '0' && c != '1') {
+      Fail("message `" + original + "`: `" + c + "` is not 0 or 1");
+    }
+    bits.push_back(c == '1');
+  }
+  return bits;
+}
+
+Bits ParseText(const std::string& text) {
+  Bits bits;
+  for (unsigned char c : text) {
+    for (int b = 7; b >= 0; --b) bits.push_back((c >> b) & 1);
+  }
+  return bits;
+}
+
+uint64_t SplitMix64(uint64_t* state) {
+  uint64_t z = (*state += 0x9e3779b97f4a7c15ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+}  // namespace
+
+Bits PaddingBits(int num_bits) {
+  Bits bits;
+  uint64_t state = 0x5741544552475321ULL;
+  uint64_t word = 0;
+  for (int i = 0; i < num_bits; ++i) {
+    if (i % 64 == 0) word = SplitMix64(&state);
+    bits.push_back((word >> (i % 64)) & 1);
+  }
+  return bits;
+}
+
+Bits ParseMessage(const std::string& text, int num_bits) {
+  if (num_bits <= 0) Fail("message length must be positive");
+  Bits bits;
+  if (StartsWith(text, "hex:")) {
+    bits = ParseHex(text.substr(4), text);
+  } else if (StartsWith(text, "0x") || StartsWith(text, "0X")) {
+    bits = ParseHex(text.substr(2), text);
+  } else if (StartsWith(text, "bits:")) {
+    bits = ParseBitString(text.substr(5), text);
+  } else if (StartsWith(text, "text:")) {
+    bits = ParseText(text.substr(5));
+  } else {
+    bits = ParseText(text);
+  }
+  if (bits.empty()) Fail("message `" + text + "` is empty");
+  if (static_cast<int>(bits.size()) > num_bits) {
+    Fail("message `" + text + "` needs " + std::to_string(bits.size()) +
+         " bits but the decoder reads " + std::to_string(num_bits));
+  }
+  const Bits padding = PaddingBits(num_bits);
+  for (size_t i = bits.size(); i < static_cast<size_t>(num_bits); ++i) {
+    bits.push_back(padding[i]);
+  }
+  return bits;
+}
+
+std::string BitsToString(const Bits& bits) {
+  std::string s;
+  for (uint8_t b : bits) s.push_back(b ? '1' : '0');
+  return s;
+}
+
+std::string BitsToHex(const Bits& bits) {
+  static const char* kDigits = "0123456789abcdef";
+  std::string s;
+  for (size_t i = 0; i < bits.size(); i += 4) {
+    int v = 0;
+    for (size_t b = 0; b < 4; ++b) {
+      v = (v << 1) | (i + b < bits.size() ? bits[i + b] : 0);
+    }
+    s.push_back(kDigits[v]);
+  }
+  return s;
+}
+
+int HammingDistance(const Bits& a, const Bits& b) {
+  if (a.size() != b.size()) {
+    Fail("cannot compare a " + std::to_string(a.size()) +
+         "-bit message with a " + std::to_string(b.size()) + "-bit one");
+  }
+  int d = 0;
+  for (size_t i = 0; i < a.size(); ++i) d += (a[i] != 0) != (b[i] != 0);
+  return d;
+}
+
+}  // namespace watergs
