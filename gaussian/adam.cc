@@ -1,0 +1,293 @@
+// Adam for GaussianModel parameter groups (see adam.h).
+#include "gaussian/adam.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "gaussian/error.h"
+
+namespace watergs {
+namespace {
+
+constexpr ParamGroup kGroups[kNumParamGroups] = {
+    ParamGroup::kXyz,     ParamGroup::kFDc,     ParamGroup::kFRest,
+    ParamGroup::kOpacity, ParamGroup::kScaling, ParamGroup::kRotation};
+
+// Gradients beyond this are clamped so that g * g stays finite in float.
+constexpr float kMaxGradMagnitude = 1e18f;
+
+template <typename V>
+void FilterRows(V& v, const std::vector<bool>& keep, size_t stride) {
+  size_t out = 0;
+  for (size_t i = 0; i < keep.size(); ++i) {
+    if (!keep[i]) continue;
+    if (out != i) {
+      std::copy_n(v.begin() + i * stride, stride, v.begin() + out * stride);
+    }
+    ++out;
+  }
+  v.resize(out * stride);
+}
+
+}  // namespace
+
+double ExponentialLr(int64_t step, double lr_init, double lr_final,
+                     int64_t delay_steps, double delay_mult,
+                     int64_t max_steps) {
+  if (step < 0 || (lr_init == 0.0 && lr_final == 0.0)) return 0.0;
+  double delay_rate = 1.0;
+  if (delay_steps > 0) {
+    const double s = std::clamp(double(step) / double(delay_steps), 0.0, 1.0);
+    delay_rate = delay_mult + (1 - delay_mult) * std::sin(0.5 * M_PI * s);
+  }
+  const double t = max_steps > 0
+                       ? std::clamp(double(step) / double(max_steps), 0.0, 1.0)
+                       : 1.0;
+  const double log_lerp =
+      std::exp(std::log(lr_init) * (1 - t) + std::log(lr_final) * t);
+  return delay_rate * log_lerp;
+}
+
+std::vector<float>& GroupParams(GaussianModel& model, ParamGroup group) {
+  switch (group) {
+    case ParamGroup::kXyz:
+      return model.means;
+    case ParamGroup::kFDc:
+      return model.sh_dc;
+    case ParamGroup::kFRest:
+      return model.sh_rest;
+    case ParamGroup::kOpacity:
+      return model.opacity_logits;
+    case ParamGroup::kScaling:
+      return model.log_scales;
+    case ParamGroup::kRotation:
+      return model.quats;
+  }
+  return model.means;
+}
+
+const std::vector<float>& GroupParams(const GaussianModel& model,
+                                      ParamGroup group) {
+  return GroupParams(const_cast<GaussianModel&>(model), group);
+}
+
+const std::vector<float>& GroupGrads(const GaussianGradients& grads,
+                                     ParamGroup group) {
+  switch (group) {
+    case ParamGroup::kXyz:
+      return grads.means;
+    case ParamGroup::kFDc:
+      return grads.sh_dc;
+    case ParamGroup::kFRest:
+      return grads.sh_rest;
+    case ParamGroup::kOpacity:
+      return grads.opacity_logits;
+    case ParamGroup::kScaling:
+      return grads.log_scales;
+    case ParamGroup::kRotation:
+      return grads.quats;
+  }
+  return grads.means;
+}
+
+int GroupStride(const GaussianModel& model, ParamGroup group) {
+  switch (group) {
+    case ParamGroup::kXyz:
+    case ParamGroup::kFDc:
+    case ParamGroup::kScaling:
+      return 3;
+    case ParamGroup::kFRest:
+      return model.sh_rest_stride();
+    case ParamGroup::kOpacity:
+      return 1;
+    case ParamGroup::kRotation:
+      return 4;
+  }
+  return 0;
+}
+
+const char* GroupName(ParamGroup group) {
+  switch (group) {
+    case ParamGroup::kXyz:
+      return "xyz";
+    case ParamGroup::kFDc:
+      return "f_dc";
+    case ParamGroup::kFRest:
+      return "f_rest";
+    case ParamGroup::kOpacity:
+      return "opacity";
+    case ParamGroup::kScaling:
+      return "scaling";
+    case ParamGroup::kRotation:
+      return "rotation";
+  }
+  return "?";
+}
+
+Adam::Adam(const AdamOptions& options, double scene_extent)
+    : options_(options), scene_extent_(scene_extent) {
+  enabled_.fill(true);
+  SetIteration(0);
+}
+
+void Adam::Init(const GaussianModel& model) {
+  num_gaussians_ = model.size();
+  for (ParamGroup group : kGroups) {
+    const int g = Index(group);
+    strides_[g] = GroupStride(model, group);
+    const size_t n = num_gaussians_ * strides_[g];
+    groups_[g].exp_avg.assign(n, 0.f);
+    groups_[g].exp_avg_sq.assign(n, 0.f);
+    groups_[g].step = 0;
+    masks_[g].clear();
+  }
+  rejected_total_ = 0;
+}
+
+void Adam::SetIteration(int64_t iteration) {
+  const AdamOptions& o = options_;
+  lr_[Index(ParamGroup::kXyz)] = ExponentialLr(
+      iteration, o.position_lr_init * scene_extent_,
+      o.position_lr_final * scene_extent_, o.position_lr_delay_steps,
+      o.position_lr_delay_mult, o.position_lr_max_steps);
+  lr_[Index(ParamGroup::kFDc)] = o.feature_lr;
+  lr_[Index(ParamGroup::kFRest)] = o.feature_rest_lr;
+  lr_[Index(ParamGroup::kOpacity)] = o.opacity_lr;
+  lr_[Index(ParamGroup::kScaling)] = o.scaling_lr;
+  lr_[Index(ParamGroup::kRotation)] = o.rotation_lr;
+}
+
+double Adam::LearningRate(ParamGroup group) const { return lr_[Index(group)]; }
+
+void Adam::SetLearningRate(ParamGroup group, double lr) {
+  lr_[Index(group)] = lr;
+}
+
+void Adam::SetGroupEnabled(ParamGroup group, bool enabled) {
+  enabled_[Index(group)] = enabled;
+}
+
+bool Adam::GroupEnabled(ParamGroup group) const {
+  return enabled_[Index(group)];
+}
+
+void Adam::SetGaussianMask(ParamGroup group, std::vector<uint8_t> mask) {
+  if (!mask.empty() && mask.size() != num_gaussians_) {
+    Fail("Adam: mask for " + std::string(GroupName(group)) + " has " +
+         std::to_string(mask.size()) + " entries, model has " +
+         std::to_string(num_gaussians_));
+  }
+  masks_[Index(group)] = std::move(mask);
+}
+
+size_t Adam::Step(const GaussianGradients& grads, GaussianModel* model) {
+  if (model->size() != num_gaussians_) {
+    Fail("Adam: model has " + std::to_string(model->size()) +
+         " Gaussians, optimiser state " + std::to_string(num_gaussians_));
+  }
+  size_t rejected = 0;
+  for (ParamGroup group : kGroups) {
+    const int g = Index(group);
+    if (!enabled_[g]) continue;
+    std::vector<float>& params = GroupParams(*model, group);
+    const std::vector<float>& grad = GroupGrads(grads, group);
+    if (grad.size() != params.size() ||
+        params.size() != groups_[g].exp_avg.size()) {
+      Fail(std::string("Adam: gradient of ") + GroupName(group) + " has " +
+           std::to_string(grad.size()) + " values, expected " +
+           std::to_string(params.size()));
+    }
+    rejected += StepGroup(group, grad, strides_[g], &params);
+  }
+  rejected_total_ += static_cast<int64_t>(rejected);
+  return rejected;
+}
+
+size_t Adam::StepGroup(ParamGroup group, const std::vector<float>& grad,
+                       int stride, std::vector<float>* params) {
+  AdamGroupState& s = groups_[Index(group)];
+  ++s.step;
+  // torch.optim.Adam (single-tensor path), in float like torch.
+  const double bias1 = 1.0 - std::pow(options_.beta1, double(s.step));
+  const double bias2 = 1.0 - std::pow(options_.beta2, double(s.step));
+  const float step_size = static_cast<float>(lr_[Index(group)] / bias1);
+  const float bias2_sqrt = static_cast<float>(std::sqrt(bias2));
+  const float w1 = static_cast<float>(1.0 - options_.beta1);
+  const float beta2 = static_cast<float>(options_.beta2);
+  const float w2 = static_cast<float>(1.0 - options_.beta2);
+  const float eps = static_cast<float>(options_.eps);
+  const std::vector<uint8_t>& mask = masks_[Index(group)];
+  const bool use_mask = !mask.empty();
+  float* p = params->data();
+  float* m = s.exp_avg.data();
+  float* v = s.exp_avg_sq.data();
+  const float* gr = grad.data();
+  const int64_t n = static_cast<int64_t>(num_gaussians_);
+  size_t rejected = 0;
+#pragma omp parallel for schedule(static) reduction(+ : rejected) \
+    if (n * stride > 32768)
+  for (int64_t i = 0; i < n; ++i) {
+    if (use_mask && !mask[i]) continue;
+    for (int k = 0; k < stride; ++k) {
+      const size_t j = static_cast<size_t>(i) * stride + k;
+      float g = gr[j];
+      if (!std::isfinite(g)) {
+        g = 0.f;
+        ++rejected;
+      }
+      g = std::clamp(g, -kMaxGradMagnitude, kMaxGradMagnitude);
+      const float new_m = m[j] + w1 * (g - m[j]);
+      const float new_v = v[j] * beta2 + w2 * g * g;
+      const float denom = std::sqrt(new_v) / bias2_sqrt + eps;
+      const float new_p = p[j] - step_size * (new_m / denom);
+      if (!std::isfinite(new_p) || !std::isfinite(new_v)) {
+        ++rejected;
+        continue;
+      }
+      m[j] = new_m;
+      v[j] = new_v;
+      p[j] = new_p;
+    }
+  }
+  return rejected;
+}
+
+void Adam::Filter(const std::vector<bool>& keep) {
+  if (keep.size() != num_gaussians_) {
+    Fail("Adam::Filter: keep has " + std::to_string(keep.size()) +
+         " entries, optimiser state " + std::to_string(num_gaussians_));
+  }
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    FilterRows(groups_[g].exp_avg, keep, strides_[g]);
+    FilterRows(groups_[g].exp_avg_sq, keep, strides_[g]);
+    if (!masks_[g].empty()) FilterRows(masks_[g], keep, 1);
+  }
+  num_gaussians_ =
+      static_cast<size_t>(std::count(keep.begin(), keep.end(), true));
+}
+
+void Adam::Append(size_t count) {
+  num_gaussians_ += count;
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    groups_[g].exp_avg.resize(num_gaussians_ * strides_[g], 0.f);
+    groups_[g].exp_avg_sq.resize(num_gaussians_ * strides_[g], 0.f);
+    if (!masks_[g].empty()) masks_[g].resize(num_gaussians_, 1);
+  }
+}
+
+void Adam::ResetMoments(ParamGroup group) {
+  AdamGroupState& s = groups_[Index(group)];
+  std::fill(s.exp_avg.begin(), s.exp_avg.end(), 0.f);
+  std::fill(s.exp_avg_sq.begin(), s.exp_avg_sq.end(), 0.f);
+}
+
+size_t Adam::BytesPerGaussian() const {
+  size_t bytes = 0;
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    bytes += 2 * sizeof(float) * strides_[g];
+    if (!masks_[g].empty()) bytes += 1;
+  }
+  return bytes;
+}
+
+}  // namespace watergs

@@ -1,0 +1,125 @@
+// Adam over the parameter groups of a GaussianModel, with Inria's 3DGS
+// learning rates and schedule. Moments live per group and follow the
+// Gaussians when density control adds or removes them. Groups (or single
+// Gaussians of a group) can be frozen: their parameters and moments are then
+// left untouched bit for bit (watermark fine-tuning relies on this).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "gaussian/gaussian_model.h"
+#include "gaussian/rasterizer.h"
+
+namespace watergs {
+
+constexpr int kNumParamGroups = 6;
+
+// Inria's get_expon_lr_func: log-linear interpolation from lr_init (step 0)
+// to lr_final (step >= max_steps), times an optional delay factor
+// delay_mult + (1 - delay_mult) sin(pi/2 clamp(step / delay_steps, 0, 1)).
+// Returns 0 for step < 0 or when both rates are 0.
+double ExponentialLr(int64_t step, double lr_init, double lr_final,
+                     int64_t delay_steps, double delay_mult, int64_t max_steps);
+
+struct AdamOptions {
+  // Position rates, multiplied by the scene extent (Inria's spatial_lr_scale).
+  double position_lr_init = 1.6e-4;
+  double position_lr_final = 1.6e-6;
+  // Inria's position_lr_delay_mult; has no effect while delay_steps is 0.
+  double position_lr_delay_mult = 0.01;
+  int64_t position_lr_delay_steps = 0;
+  // Iteration at which the position rate reaches its final value (Inria
+  // fixes 30000; the trainer sets the run's length).
+  int64_t position_lr_max_steps = 30000;
+  // Constant rates of the other groups.
+  double feature_lr = 2.5e-3;
+  double feature_rest_lr = 2.5e-3 / 20.0;
+  double opacity_lr = 0.05;
+  double scaling_lr = 5e-3;
+  double rotation_lr = 1e-3;
+  // Adam constants (Inria: torch defaults with eps 1e-15).
+  double beta1 = 0.9;
+  double beta2 = 0.999;
+  double eps = 1e-15;
+};
+
+// Moments of one group: N x stride floats each, and the update count used
+// for bias correction (shared by the group, as in torch).
+struct AdamGroupState {
+  std::vector<float> exp_avg;
+  std::vector<float> exp_avg_sq;
+  int64_t step = 0;
+};
+
+// The model array and the gradient array of a group, and its floats per
+// Gaussian.
+std::vector<float>& GroupParams(GaussianModel& model, ParamGroup group);
+const std::vector<float>& GroupParams(const GaussianModel& model,
+                                      ParamGroup group);
+const std::vector<float>& GroupGrads(const GaussianGradients& grads,
+                                     ParamGroup group);
+int GroupStride(const GaussianModel& model, ParamGroup group);
+const char* GroupName(ParamGroup group);
+
+class Adam {
+ public:
+  Adam(const AdamOptions& options, double scene_extent);
+
+  // Sizes the moments to `model` with zeros and resets the step counts.
+  void Init(const GaussianModel& model);
+  // Sets the rates for 1-based `iteration` (Inria's update_learning_rate).
+  void SetIteration(int64_t iteration);
+  double LearningRate(ParamGroup group) const;
+  void SetLearningRate(ParamGroup group, double lr);
+
+  // A disabled group is never updated and its step count does not advance.
+  void SetGroupEnabled(ParamGroup group, bool enabled);
+  bool GroupEnabled(ParamGroup group) const;
+  // Per-Gaussian mask of a group (N entries, nonzero = trainable); empty
+  // means all. Gaussians appended later are trainable.
+  void SetGaussianMask(ParamGroup group, std::vector<uint8_t> mask);
+
+  // One Adam update of every enabled group. Non-finite gradient values are
+  // treated as 0 (counted, never reach a parameter); an update that would
+  // make a parameter non-finite is skipped and counted. Returns the count.
+  size_t Step(const GaussianGradients& grads, GaussianModel* model);
+
+  // Density-control bookkeeping: keep the Gaussians with keep[i] true (in
+  // order); append `count` Gaussians with zero moments; zero a group's moments
+  // (Inria does this for opacity at each opacity reset).
+  void Filter(const std::vector<bool>& keep);
+  void Append(size_t count);
+  void ResetMoments(ParamGroup group);
+
+  // Number of Gaussians the moments describe.
+  size_t size() const { return num_gaussians_; }
+  AdamGroupState& state(ParamGroup group) { return groups_[Index(group)]; }
+  const AdamGroupState& state(ParamGroup group) const {
+    return groups_[Index(group)];
+  }
+  // Non-finite values rejected by Step since Init.
+  int64_t rejected_total() const { return rejected_total_; }
+  void set_rejected_total(int64_t n) { rejected_total_ = n; }
+  // Bytes of optimiser state per Gaussian (moments and masks).
+  size_t BytesPerGaussian() const;
+  const AdamOptions& options() const { return options_; }
+
+ private:
+  static int Index(ParamGroup group) { return static_cast<int>(group); }
+  size_t StepGroup(ParamGroup group, const std::vector<float>& grad, int stride,
+                   std::vector<float>* params);
+
+  AdamOptions options_;
+  double scene_extent_;
+  size_t num_gaussians_ = 0;
+  std::array<int, kNumParamGroups> strides_{};
+  std::array<AdamGroupState, kNumParamGroups> groups_;
+  std::array<double, kNumParamGroups> lr_{};
+  std::array<bool, kNumParamGroups> enabled_{};
+  std::array<std::vector<uint8_t>, kNumParamGroups> masks_;
+  int64_t rejected_total_ = 0;
+};
+
+}  // namespace watergs

@@ -1,0 +1,210 @@
+// Tests for the Adam optimiser: Inria's learning-rate schedule, the update
+// rule against a double-precision reference, frozen groups and masks,
+// non-finite gradients, and moment bookkeeping under density control.
+#include "gaussian/adam.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+
+#include "gaussian/error.h"
+
+namespace watergs {
+namespace {
+
+GaussianModel RandomModel(size_t n, int sh_degree, uint32_t seed) {
+  GaussianModel model;
+  model.sh_degree = sh_degree;
+  model.Resize(n);
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> normal;
+  for (ParamGroup g :
+       {ParamGroup::kXyz, ParamGroup::kFDc, ParamGroup::kFRest,
+        ParamGroup::kOpacity, ParamGroup::kScaling, ParamGroup::kRotation}) {
+    for (float& v : GroupParams(model, g)) v = normal(rng);
+  }
+  return model;
+}
+
+GaussianGradients RandomGrads(const GaussianModel& model, uint32_t seed) {
+  GaussianGradients grads;
+  grads.Reset(model.size(), model.sh_rest_stride());
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> normal(0.f, 1e-2f);
+  for (auto* v : {&grads.means, &grads.sh_dc, &grads.sh_rest,
+                  &grads.opacity_logits, &grads.log_scales, &grads.quats}) {
+    for (float& x : *v) x = normal(rng);
+  }
+  return grads;
+}
+
+TEST(Adam, ExponentialLrFollowsInriaSchedule) {
+  EXPECT_DOUBLE_EQ(ExponentialLr(0, 1e-2, 1e-4, 0, 0.01, 1000), 1e-2);
+  EXPECT_NEAR(ExponentialLr(1000, 1e-2, 1e-4, 0, 0.01, 1000), 1e-4, 1e-18);
+  EXPECT_NEAR(ExponentialLr(5000, 1e-2, 1e-4, 0, 0.01, 1000), 1e-4, 1e-18);
+  // Log-linear: halfway is the geometric mean.
+  EXPECT_NEAR(ExponentialLr(500, 1e-2, 1e-4, 0, 0.01, 1000), 1e-3, 1e-15);
+  EXPECT_EQ(ExponentialLr(-1, 1e-2, 1e-4, 0, 0.01, 1000), 0.0);
+  // With a delay the rate starts at delay_mult times the curve.
+  EXPECT_NEAR(ExponentialLr(0, 1e-2, 1e-4, 100, 0.01, 1000), 1e-4, 1e-18);
+  EXPECT_NEAR(ExponentialLr(100, 1e-2, 1e-4, 100, 0.01, 1000),
+              ExponentialLr(100, 1e-2, 1e-4, 0, 0.01, 1000), 1e-15);
+}
+
+TEST(Adam, PositionRateScalesWithExtentOthersConstant) {
+  AdamOptions options;
+  options.position_lr_max_steps = 100;
+  Adam adam(options, 4.0);
+  adam.SetIteration(0);
+  EXPECT_NEAR(adam.LearningRate(ParamGroup::kXyz), 1.6e-4 * 4.0, 1e-15);
+  adam.SetIteration(100);
+  EXPECT_NEAR(adam.LearningRate(ParamGroup::kXyz), 1.6e-6 * 4.0, 1e-17);
+  EXPECT_DOUBLE_EQ(adam.LearningRate(ParamGroup::kFDc), 2.5e-3);
+  EXPECT_DOUBLE_EQ(adam.LearningRate(ParamGroup::kFRest), 2.5e-3 / 20);
+  EXPECT_DOUBLE_EQ(adam.LearningRate(ParamGroup::kOpacity), 0.05);
+  EXPECT_DOUBLE_EQ(adam.LearningRate(ParamGroup::kScaling), 5e-3);
+  EXPECT_DOUBLE_EQ(adam.LearningRate(ParamGroup::kRotation), 1e-3);
+}
+
+TEST(Adam, MatchesDoublePrecisionReference) {
+  GaussianModel model = RandomModel(7, 1, 1);
+  const GaussianModel start = model;
+  Adam adam(AdamOptions{}, 2.0);
+  adam.Init(model);
+  const double b1 = 0.9, b2 = 0.999, eps = 1e-15;
+  // Reference state for the opacity and f_rest groups.
+  for (ParamGroup group : {ParamGroup::kOpacity, ParamGroup::kFRest}) {
+    std::vector<double> p(GroupParams(start, group).begin(),
+                          GroupParams(start, group).end());
+    std::vector<double> m(p.size(), 0), v(p.size(), 0);
+    GaussianModel run = start;
+    Adam opt(AdamOptions{}, 2.0);
+    opt.Init(run);
+    for (int t = 1; t <= 5; ++t) {
+      opt.SetIteration(t);
+      const GaussianGradients grads = RandomGrads(run, 10 + t);
+      opt.Step(grads, &run);
+      const double lr = opt.LearningRate(group);
+      const auto& g = GroupGrads(grads, group);
+      for (size_t j = 0; j < p.size(); ++j) {
+        m[j] = b1 * m[j] + (1 - b1) * g[j];
+        v[j] = b2 * v[j] + (1 - b2) * double(g[j]) * g[j];
+        const double mh = m[j] / (1 - std::pow(b1, t));
+        const double vh = v[j] / (1 - std::pow(b2, t));
+        p[j] -= lr * mh / (std::sqrt(vh) + eps);
+      }
+    }
+    const auto& got = GroupParams(run, group);
+    for (size_t j = 0; j < p.size(); ++j) {
+      EXPECT_NEAR(got[j], p[j], 1e-5) << GroupName(group) << " " << j;
+    }
+  }
+  // First step moves every parameter by lr against the gradient's sign.
+  adam.SetIteration(1);
+  const GaussianGradients grads = RandomGrads(model, 99);
+  adam.Step(grads, &model);
+  for (size_t j = 0; j < model.means.size(); ++j) {
+    const double lr = adam.LearningRate(ParamGroup::kXyz);
+    EXPECT_NEAR(model.means[j] - start.means[j],
+                -lr * (grads.means[j] > 0 ? 1 : -1), 1e-3 * lr);
+  }
+}
+
+TEST(Adam, FrozenGroupsAndMaskedGaussiansStayBitIdentical) {
+  GaussianModel model = RandomModel(9, 3, 2);
+  Adam adam(AdamOptions{}, 1.0);
+  adam.Init(model);
+  adam.SetGroupEnabled(ParamGroup::kFRest, false);
+  std::vector<uint8_t> mask(9, 1);
+  mask[3] = 0;
+  adam.SetGaussianMask(ParamGroup::kXyz, mask);
+  // One ordinary step first so that the frozen group's moments are nonzero.
+  adam.SetGroupEnabled(ParamGroup::kFRest, true);
+  adam.Step(RandomGrads(model, 3), &model);
+  adam.SetGroupEnabled(ParamGroup::kFRest, false);
+  const GaussianModel before = model;
+  const AdamGroupState rest_before = adam.state(ParamGroup::kFRest);
+  const std::vector<float> xyz_m = adam.state(ParamGroup::kXyz).exp_avg;
+  for (int t = 0; t < 3; ++t) adam.Step(RandomGrads(model, 4 + t), &model);
+  EXPECT_EQ(0, std::memcmp(before.sh_rest.data(), model.sh_rest.data(),
+                           model.sh_rest.size() * sizeof(float)));
+  EXPECT_EQ(rest_before.exp_avg, adam.state(ParamGroup::kFRest).exp_avg);
+  EXPECT_EQ(rest_before.exp_avg_sq, adam.state(ParamGroup::kFRest).exp_avg_sq);
+  EXPECT_EQ(rest_before.step, adam.state(ParamGroup::kFRest).step);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(before.means[9 + k], model.means[9 + k]);
+    EXPECT_EQ(xyz_m[9 + k], adam.state(ParamGroup::kXyz).exp_avg[9 + k]);
+    EXPECT_NE(before.means[k], model.means[k]);
+  }
+  EXPECT_NE(before.sh_dc, model.sh_dc);
+}
+
+TEST(Adam, NonFiniteGradientsNeverReachParameters) {
+  GaussianModel model = RandomModel(4, 0, 5);
+  GaussianModel reference = model;
+  Adam adam(AdamOptions{}, 1.0), ref(AdamOptions{}, 1.0);
+  adam.Init(model);
+  ref.Init(reference);
+  GaussianGradients grads = RandomGrads(model, 6);
+  GaussianGradients clean = grads;
+  grads.means[1] = std::numeric_limits<float>::quiet_NaN();
+  grads.opacity_logits[2] = std::numeric_limits<float>::infinity();
+  grads.log_scales[0] = -std::numeric_limits<float>::infinity();
+  clean.means[1] = 0;
+  clean.opacity_logits[2] = 0;
+  clean.log_scales[0] = 0;
+  EXPECT_EQ(adam.Step(grads, &model), 3u);
+  EXPECT_EQ(ref.Step(clean, &reference), 0u);
+  EXPECT_EQ(model.CountNonFinite(), 0u);
+  EXPECT_EQ(model.means, reference.means);
+  EXPECT_EQ(model.opacity_logits, reference.opacity_logits);
+  EXPECT_EQ(adam.rejected_total(), 3);
+  // Huge finite gradients give a bounded step.
+  GaussianGradients huge = clean;
+  huge.means[0] = 3e38f;
+  adam.Step(huge, &model);
+  EXPECT_EQ(model.CountNonFinite(), 0u);
+}
+
+TEST(Adam, MomentsFollowFilterAndAppend) {
+  GaussianModel model = RandomModel(5, 1, 7);
+  Adam adam(AdamOptions{}, 1.0);
+  adam.Init(model);
+  adam.Step(RandomGrads(model, 8), &model);
+  const auto before = adam.state(ParamGroup::kRotation).exp_avg;
+  const std::vector<bool> keep = {true, false, true, false, true};
+  adam.Filter(keep);
+  ASSERT_EQ(adam.size(), 3u);
+  const auto& after = adam.state(ParamGroup::kRotation).exp_avg;
+  ASSERT_EQ(after.size(), 12u);
+  const int kept[3] = {0, 2, 4};
+  for (int i = 0; i < 3; ++i) {
+    for (int k = 0; k < 4; ++k) {
+      EXPECT_EQ(after[i * 4 + k], before[kept[i] * 4 + k]);
+    }
+  }
+  adam.Append(2);
+  ASSERT_EQ(adam.size(), 5u);
+  const auto& grown = adam.state(ParamGroup::kFRest).exp_avg_sq;
+  ASSERT_EQ(grown.size(), 5u * 9);
+  for (size_t j = 3 * 9; j < grown.size(); ++j) EXPECT_EQ(grown[j], 0.f);
+  EXPECT_GT(std::abs(grown[0]), 0.f);
+  adam.ResetMoments(ParamGroup::kOpacity);
+  for (float m : adam.state(ParamGroup::kOpacity).exp_avg) EXPECT_EQ(m, 0.f);
+  EXPECT_EQ(adam.state(ParamGroup::kOpacity).step, 1);
+}
+
+TEST(Adam, MismatchedGradientsAreAnError) {
+  GaussianModel model = RandomModel(3, 0, 9);
+  Adam adam(AdamOptions{}, 1.0);
+  adam.Init(model);
+  GaussianGradients grads;
+  grads.Reset(2, 0);
+  EXPECT_THROW(adam.Step(grads, &model), Error);
+}
+
+}  // namespace
+}  // namespace watergs
