@@ -1,0 +1,37 @@
+// `watergs model_converter`: converts a COLMAP sparse model between the .bin
+// and .txt formats, writing exactly what `colmap model_converter` writes.
+#include <iostream>
+
+#include "plugin/command.h"
+#include "plugin/option_parser.h"
+#include "plugin/reconstruction_io.h"
+
+namespace {
+
+int RunModelConverter(int argc, char** argv) {
+  std::string input_path, output_path, output_type;
+  watergs::OptionParser parser(
+      "model_converter",
+      "Converts a COLMAP sparse model to BIN or TXT (as colmap "
+      "model_converter).");
+  parser.AddRequired("input_path", &input_path,
+                     "Sparse model folder, or a workspace holding sparse/0");
+  parser.AddRequired("output_path", &output_path,
+                     "Folder to write cameras/images/points3D into");
+  parser.AddRequired("output_type", &output_type, "BIN or TXT");
+  if (!parser.Parse(argc, argv)) return 0;
+  const watergs::ModelFormat format = watergs::ParseModelFormat(output_type);
+  const watergs::Reconstruction reconstruction =
+      watergs::ReadReconstruction(input_path);
+  watergs::WriteReconstruction(reconstruction, output_path, format);
+  std::cout << "Wrote " << reconstruction.NumCameras() << " cameras, "
+            << reconstruction.NumRegImages() << " images, "
+            << reconstruction.NumPoints3D() << " points3D to " << output_path
+            << "\n";
+  return 0;
+}
+
+}  // namespace
+
+WATERGS_COMMAND(model_converter, "Converts a COLMAP model between BIN and TXT",
+                RunModelConverter);

@@ -1,0 +1,30 @@
+// The summary `colmap model_analyzer` prints for a sparse model.
+#pragma once
+
+#include <string>
+
+#include "plugin/reconstruction.h"
+
+namespace watergs {
+
+struct ModelSummary {
+  // Counts as COLMAP reports them.
+  size_t num_cameras = 0;
+  size_t num_images = 0;
+  size_t num_reg_images = 0;
+  size_t num_points3D = 0;
+  size_t num_observations = 0;
+  // Observations / points, observations / registered images.
+  double mean_track_length = 0;
+  double mean_observations_per_image = 0;
+  // Mean of Point3D::error over points with an error, in pixels.
+  double mean_reprojection_error = 0;
+};
+
+// Computes the figures with COLMAP's definitions (Reconstruction::Compute*).
+ModelSummary AnalyzeModel(const Reconstruction& reconstruction);
+
+// The lines model_analyzer prints, e.g. "Mean track length: 3.250000".
+std::string FormatModelSummary(const ModelSummary& summary);
+
+}  // namespace watergs
