@@ -11,6 +11,7 @@ void GaussianGradients::Reset(size_t n, int rest_stride) {
   zero(sh_dc, n * 3);
   zero(sh_rest, n * static_cast<size_t>(rest_stride));
   zero(mean2d_grad_norm, n);
+  zero(mean2d_grad_norm_ndc, n);
   visible.assign(n, 0);
 }
 

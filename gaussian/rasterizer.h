@@ -36,6 +36,9 @@ struct GaussianGradients {
   // Per Gaussian: norm of dL/d(mean2d) in pixels for this view (0 if not
   // visible), the statistic Inria accumulates for densification.
   std::vector<float> mean2d_grad_norm;
+  // Per Gaussian: the same gradient in Inria's NDC units, |(gx W/2, gy H/2)|
+  // with W x H the full frame: compare this one with Inria's 2e-4 threshold.
+  std::vector<float> mean2d_grad_norm_ndc;
   // Per Gaussian: 1 if it was visible (radius > 0) in this view.
   std::vector<uint8_t> visible;
   // Zero-sized to n Gaussians with sh_rest stride `rest_stride`.

@@ -1,0 +1,237 @@
+// CPU rasterizer: wires projection, SH colour, depth sort, binning and the
+// blending passes; the per-Gaussian stages run in parallel over Gaussians.
+#include "gaussian/cpu_rasterizer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include "gaussian/error.h"
+#include "gaussian/sh.h"
+
+namespace watergs {
+namespace {
+
+double Sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
+
+// Rows and tiles where a splat's alpha can reach 1/255: the ellipse
+// d^T conic d <= 2 ln(255 opacity), bounded via the covariance diagonal.
+// Returns false if the splat can never reach 1/255.
+bool AlphaSupport(const ProjectedGaussian& p, float opacity, Splat* s,
+                  TileRange* tiles) {
+  const double level = std::log(255.0 * static_cast<double>(opacity));
+  if (!(level > 0)) return false;
+  // Margin covers float rounding in the blending loops.
+  auto half = [&](double var) {
+    return std::min(kMaxRadius,
+                    std::sqrt(2.0 * level * var) * (1 + 1e-3) + 0.05);
+  };
+  const double hx = half(p.cov2d[0]), hy = half(p.cov2d[2]);
+  const double y_lo = std::ceil(p.mean2d[1] - hy - 0.5);
+  const double y_hi = std::floor(p.mean2d[1] + hy - 0.5);
+  const double x_lo = std::ceil(p.mean2d[0] - hx - 0.5);
+  const double x_hi = std::floor(p.mean2d[0] + hx - 0.5);
+  if (y_hi < y_lo || x_hi < x_lo) return false;
+  auto clamp_int = [](double v) {
+    return static_cast<int>(std::clamp(v, -1.0e8, 1.0e8));
+  };
+  s->row_min = clamp_int(y_lo);
+  s->row_max = clamp_int(y_hi);
+  auto tile = [](int v) {
+    return v >= 0 ? v / kTileSize : -((-v + kTileSize - 1) / kTileSize);
+  };
+  tiles->x0 = tile(clamp_int(x_lo));
+  tiles->x1 = tile(clamp_int(x_hi)) + 1;
+  tiles->y0 = tile(s->row_min);
+  tiles->y1 = tile(s->row_max) + 1;
+  return true;
+}
+
+// Splat fields (colour excluded) of a projected Gaussian.
+Splat MakeSplat(const ProjectedGaussian& p, float opacity) {
+  Splat s{};
+  s.mean_x = static_cast<float>(p.mean2d[0]);
+  s.mean_y = static_cast<float>(p.mean2d[1]);
+  s.conic_a = static_cast<float>(p.conic[0]);
+  s.conic_b = static_cast<float>(p.conic[1]);
+  s.conic_c = static_cast<float>(p.conic[2]);
+  s.opacity = opacity;
+  return s;
+}
+
+// Clamped colour of Gaussian i into s->color; returns the clamped-bit mask.
+uint8_t ShadeSplat(const GaussianModel& model, size_t i, int degree,
+                   const ProjectionCamera& cam, Splat* s) {
+  const float* m = &model.means[3 * i];
+  const double dir[3] = {m[0] - cam.center[0], m[1] - cam.center[1],
+                         m[2] - cam.center[2]};
+  double rgb[3];
+  ShColorUnclamped(degree, &model.sh_dc[3 * i],
+                   model.sh_rest.data() + i * model.sh_rest_stride(), dir, rgb);
+  uint8_t clamped = 0;
+  for (int ch = 0; ch < 3; ++ch) {
+    if (!(rgb[ch] >= 0)) clamped |= uint8_t(1u << ch);
+    s->color[ch] = clamped & (1u << ch) ? 0.f : static_cast<float>(rgb[ch]);
+  }
+  return clamped;
+}
+
+}  // namespace
+
+size_t CpuRenderContext::Bytes() const {
+  return sizeof(*this) + splat_ids.capacity() * sizeof(uint32_t) +
+         color_clamped.capacity() + splats.capacity() * sizeof(Splat) +
+         (bins.offsets.capacity() + bins.ids.capacity()) * sizeof(uint32_t) +
+         blend.final_T.capacity() * sizeof(float) +
+         blend.n_contrib.capacity() * sizeof(uint32_t) + visible.capacity();
+}
+
+PixelRect ResolveRenderRect(const RenderCamera& camera,
+                            const RenderOptions& options) {
+  if (camera.width <= 0 || camera.height <= 0) {
+    Fail("render: camera has an empty image size " +
+         std::to_string(camera.width) + "x" + std::to_string(camera.height));
+  }
+  if (!(camera.fx > 0) || !(camera.fy > 0)) {
+    Fail("render: camera focal lengths must be positive");
+  }
+  if (options.rect.empty()) return {0, 0, camera.width, camera.height};
+  const PixelRect& r = options.rect;
+  if (r.x0 < 0 || r.y0 < 0 || r.x0 + r.width > camera.width ||
+      r.y0 + r.height > camera.height) {
+    Fail("render: pixel rectangle " + std::to_string(r.x0) + "," +
+         std::to_string(r.y0) + " " + std::to_string(r.width) + "x" +
+         std::to_string(r.height) + " is not inside the " +
+         std::to_string(camera.width) + "x" + std::to_string(camera.height) +
+         " frame");
+  }
+  return r;
+}
+
+void CpuRasterizer::Forward(const GaussianModel& model,
+                            const RenderCamera& camera,
+                            const RenderOptions& options, ImageRGB* image,
+                            std::unique_ptr<RenderContext>* context) {
+  const PixelRect rect = ResolveRenderRect(camera, options);
+  auto ctx = std::make_unique<CpuRenderContext>();
+  ctx->camera = MakeProjectionCamera(camera);
+  ctx->frame_width = camera.width, ctx->frame_height = camera.height;
+  ctx->active_sh_degree =
+      options.active_sh_degree < 0
+          ? model.sh_degree
+          : std::min(options.active_sh_degree, model.sh_degree);
+  ctx->background = options.background;
+  const size_t n = model.size();
+  ctx->num_gaussians = n;
+  const TileRange render_tiles =
+      TilesCoveringRect(rect.x0, rect.y0, rect.width, rect.height);
+  std::vector<Splat> all(n);
+  std::vector<TileRange> all_tiles(n);
+  std::vector<float> depth(n);
+  std::vector<uint8_t> binned(n, 0), clamped(n, 0);
+  ctx->visible.assign(n, 0);
+  const ProjectionCamera& cam = ctx->camera;
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < n; ++i) {
+    ProjectedGaussian p;
+    if (!ProjectForward(cam, &model.means[3 * i], &model.log_scales[3 * i],
+                        &model.quats[4 * i], &p)) {
+      continue;
+    }
+    if (Intersect(p.tiles, render_tiles).empty()) continue;
+    ctx->visible[i] = 1;
+    const float opacity = static_cast<float>(Sigmoid(model.opacity_logits[i]));
+    all[i] = MakeSplat(p, opacity);
+    TileRange support;
+    if (!AlphaSupport(p, opacity, &all[i], &support)) continue;
+    all_tiles[i] = Intersect(Intersect(p.tiles, render_tiles), support);
+    if (all_tiles[i].empty()) continue;
+    binned[i] = 1;
+    depth[i] = static_cast<float>(p.depth);
+    clamped[i] = ShadeSplat(model, i, ctx->active_sh_degree, cam, &all[i]);
+  }
+  std::vector<uint32_t>& ids = ctx->splat_ids;
+  for (size_t i = 0; i < n; ++i) {
+    if (binned[i]) ids.push_back(static_cast<uint32_t>(i));
+  }
+  std::sort(ids.begin(), ids.end(), [&](uint32_t a, uint32_t b) {
+    return depth[a] < depth[b] || (depth[a] == depth[b] && a < b);
+  });
+  const size_t m = ids.size();
+  ctx->splats.resize(m);
+  ctx->color_clamped.resize(m);
+  std::vector<TileRange> splat_tiles(m);
+  for (size_t k = 0; k < m; ++k) {
+    ctx->splats[k] = all[ids[k]];
+    ctx->color_clamped[k] = clamped[ids[k]];
+    splat_tiles[k] = all_tiles[ids[k]];
+  }
+  BinSplats(splat_tiles, render_tiles, &ctx->bins);
+  RasterizeForward(ctx->splats, ctx->bins, rect, options.background, image,
+                   &ctx->blend);
+  if (context != nullptr) *context = std::move(ctx);
+}
+
+void CpuRasterizer::Backward(const GaussianModel& model,
+                             const RenderContext& context,
+                             const ImageRGB& grad_image,
+                             GaussianGradients* grads) {
+  const auto& ctx = dynamic_cast<const CpuRenderContext&>(context);
+  const PixelRect& rect = ctx.blend.rect;
+  if (grad_image.width != rect.width || grad_image.height != rect.height ||
+      model.size() != ctx.num_gaussians) {
+    Fail(
+        "render backward: gradient image or model does not match the "
+        "forward pass");
+  }
+  std::vector<SplatGrad> splat_grads;
+  RasterizeBackward(ctx.splats, ctx.bins, ctx.background, ctx.blend, grad_image,
+                    &splat_grads);
+  const int stride = model.sh_rest_stride();
+  grads->Reset(model.size(), stride);
+  grads->visible = ctx.visible;
+  const ProjectionCamera& cam = ctx.camera;
+  const double half_w = 0.5 * ctx.frame_width, half_h = 0.5 * ctx.frame_height;
+#pragma omp parallel for schedule(static)
+  for (size_t k = 0; k < ctx.splat_ids.size(); ++k) {
+    const size_t i = ctx.splat_ids[k];
+    const SplatGrad& g = splat_grads[k];
+    const float* mean = &model.means[3 * i];
+    double grad_mean[3] = {0, 0, 0}, grad_ls[3] = {0, 0, 0};
+    double grad_q[4] = {0, 0, 0, 0};
+    double grad_rgb[3];
+    for (int ch = 0; ch < 3; ++ch) {
+      grad_rgb[ch] = ctx.color_clamped[k] & (1u << ch) ? 0.0 : g.color[ch];
+    }
+    const double dir[3] = {mean[0] - cam.center[0], mean[1] - cam.center[1],
+                           mean[2] - cam.center[2]};
+    ShColorBackward(ctx.active_sh_degree, &model.sh_dc[3 * i],
+                    model.sh_rest.data() + i * stride, dir, grad_rgb,
+                    &grads->sh_dc[3 * i], grads->sh_rest.data() + i * stride,
+                    grad_mean);
+    const double s = Sigmoid(model.opacity_logits[i]);
+    grads->opacity_logits[i] = static_cast<float>(g.opacity * s * (1 - s));
+    const double grad_mean2d[2] = {g.mean_x, g.mean_y};
+    const double grad_conic[3] = {g.conic_a, g.conic_b, g.conic_c};
+    ProjectBackward(cam, mean, &model.log_scales[3 * i], &model.quats[4 * i],
+                    grad_mean2d, grad_conic, grad_mean, grad_ls, grad_q);
+    for (int d = 0; d < 3; ++d) {
+      grads->means[3 * i + d] = static_cast<float>(grad_mean[d]);
+      grads->log_scales[3 * i + d] = static_cast<float>(grad_ls[d]);
+    }
+    for (int d = 0; d < 4; ++d) {
+      grads->quats[4 * i + d] = static_cast<float>(grad_q[d]);
+    }
+    grads->mean2d_grad_norm[i] =
+        static_cast<float>(std::hypot(grad_mean2d[0], grad_mean2d[1]));
+    grads->mean2d_grad_norm_ndc[i] = static_cast<float>(
+        std::hypot(grad_mean2d[0] * half_w, grad_mean2d[1] * half_h));
+  }
+}
+
+std::unique_ptr<Rasterizer> MakeCpuRasterizer() {
+  return std::make_unique<CpuRasterizer>();
+}
+
+}  // namespace watergs
