@@ -1,0 +1,184 @@
+// `watergs ply_info`: summary of a 3DGS PLY file (count, SH degree, layout,
+// attribute ranges in their activated units, NaN/Inf count, bytes per
+// Gaussian).
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "gaussian/ply_io.h"
+#include "plugin/command.h"
+#include "plugin/option_parser.h"
+
+namespace {
+
+// Running min/max/mean over the finite values; counts the others.
+struct RangeStats {
+  double min = std::numeric_limits<double>::infinity();
+  double max = -std::numeric_limits<double>::infinity();
+  double sum = 0;
+  size_t finite = 0;
+  size_t non_finite = 0;
+
+  void Add(double v) {
+    if (!std::isfinite(v)) {
+      ++non_finite;
+      return;
+    }
+    min = std::min(min, v);
+    max = std::max(max, v);
+    sum += v;
+    ++finite;
+  }
+};
+
+// Stats of column `offset` of an N x stride array after `activation`.
+template <typename F>
+RangeStats Column(const std::vector<float>& values, int stride, int offset,
+                  F&& activation) {
+  RangeStats s;
+  for (size_t i = offset; i < values.size(); i += stride) {
+    s.Add(activation(values[i]));
+  }
+  return s;
+}
+
+void PrintRow(const std::string& name, const RangeStats& s) {
+  char line[160];
+  if (s.finite == 0) {
+    std::snprintf(line, sizeof(line), "  %-20s %14s %14s %14s %10zu\n",
+                  name.c_str(), "-", "-", "-", s.non_finite);
+  } else {
+    std::snprintf(line, sizeof(line), "  %-20s %14.6g %14.6g %14.6g %10zu\n",
+                  name.c_str(), s.min, s.max, s.sum / s.finite, s.non_finite);
+  }
+  std::fputs(line, stdout);
+}
+
+// Splits "f_rest_12" into ("f_rest_", 12); number -1 if there is none.
+std::pair<std::string, long> SplitNumber(const std::string& name) {
+  size_t digits = name.size();
+  while (digits > 0 &&
+         std::isdigit(static_cast<unsigned char>(name[digits - 1]))) {
+    --digits;
+  }
+  if (digits == name.size() || name.size() - digits > 9) return {name, -1};
+  return {name.substr(0, digits), std::stol(name.substr(digits))};
+}
+
+// "x y z nx ny nz f_dc_0..2 f_rest_0..44 ..." with types where not float.
+std::string DescribeProperties(const std::vector<watergs::PlyProperty>& props) {
+  std::string out;
+  for (size_t p = 0; p < props.size();) {
+    const auto [prefix, first] = SplitNumber(props[p].name);
+    size_t q = p + 1;
+    while (first >= 0 && q < props.size() && props[q].type == props[p].type &&
+           SplitNumber(props[q].name) ==
+               std::make_pair(prefix, first + static_cast<long>(q - p))) {
+      ++q;
+    }
+    if (!out.empty()) out += ' ';
+    out += props[p].name;
+    if (q - p > 1) out += ".." + std::to_string(first + (q - p - 1));
+    if (props[p].type != watergs::PlyType::kFloat32) {
+      out += std::string(":") + props[p].type_name;
+    }
+    p = q;
+  }
+  return out;
+}
+
+const char* FormatName(watergs::PlyFormat format) {
+  switch (format) {
+    case watergs::PlyFormat::kBinaryLittleEndian:
+      return "binary_little_endian";
+    case watergs::PlyFormat::kBinaryBigEndian:
+      return "binary_big_endian";
+    case watergs::PlyFormat::kAscii:
+      return "ascii";
+  }
+  return "?";
+}
+
+void PrintRanges(const watergs::GaussianModel& m) {
+  const auto identity = [](float v) { return double(v); };
+  const auto exp = [](float v) { return std::exp(double(v)); };
+  const auto sigmoid = [](float v) {
+    return 1.0 / (1.0 + std::exp(-double(v)));
+  };
+  const auto colour = [](float v) { return double(watergs::ShDcToRgb(v)); };
+  std::printf(
+      "Attribute ranges (finite values):\n  %-20s %14s %14s %14s %10s\n",
+      "attribute", "min", "max", "mean", "NaN/Inf");
+  const char* axes[] = {"x", "y", "z"};
+  for (int k = 0; k < 3; ++k)
+    PrintRow(axes[k], Column(m.means, 3, k, identity));
+  for (int k = 0; k < 3; ++k) {
+    PrintRow("scale_" + std::to_string(k) + " (exp)",
+             Column(m.log_scales, 3, k, exp));
+  }
+  PrintRow("opacity (sigmoid)", Column(m.opacity_logits, 1, 0, sigmoid));
+  const char* channels[] = {"r", "g", "b"};
+  for (int c = 0; c < 3; ++c) {
+    PrintRow(std::string("colour ") + channels[c] + " (DC)",
+             Column(m.sh_dc, 3, c, colour));
+  }
+  RangeStats rest;
+  for (float v : m.sh_rest) rest.Add(v);
+  if (m.sh_degree > 0) PrintRow("f_rest (all)", rest);
+  RangeStats quat_norm;
+  for (size_t i = 0; i < m.size(); ++i) {
+    const float* q = &m.quats[4 * i];
+    quat_norm.Add(std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] +
+                            double(q[2]) * q[2] + double(q[3]) * q[3]));
+  }
+  PrintRow("|rot|", quat_norm);
+}
+
+int RunPlyInfo(int argc, char** argv) {
+  std::string input_path;
+  watergs::OptionParser parser(
+      "ply_info",
+      "Prints a 3DGS PLY's Gaussian count, SH degree, layout, attribute "
+      "ranges and NaN/Inf count.");
+  parser.AddRequired("input_path", &input_path, "The .ply file");
+  if (!parser.Parse(argc, argv)) return 0;
+  watergs::PlyReadOptions options;
+  options.allow_non_finite = true;  // report them instead of refusing
+  const watergs::PlyData data = watergs::ReadPly(input_path, options);
+  const watergs::GaussianModel& m = data.model;
+  const int rest = m.sh_rest_stride();
+  std::printf("File:            %s\n", input_path.c_str());
+  std::printf("Format:          %s %s\n", FormatName(data.layout.format),
+              data.layout.format_version.c_str());
+  std::printf("File size:       %llu bytes (header %llu)\n",
+              static_cast<unsigned long long>(data.file_size),
+              static_cast<unsigned long long>(data.header_size));
+  std::printf("Gaussians:       %zu\n", m.size());
+  std::printf("SH degree:       %d (%d f_rest)\n", m.sh_degree, rest);
+  if (m.size() > 0) {
+    std::printf("Bytes/Gaussian:  %.2f (vertex data %.2f)\n",
+                double(data.file_size) / m.size(),
+                double(data.file_size - data.header_size) / m.size());
+  }
+  std::printf("Properties (%zu): %s\n", data.layout.properties.size(),
+              DescribeProperties(data.layout.properties).c_str());
+  std::vector<watergs::PlyProperty> extras;
+  for (int p : data.layout.ExtraPropertyIndices()) {
+    extras.push_back(data.layout.properties[p]);
+  }
+  std::printf("Extra properties: %s\n",
+              extras.empty() ? "none" : DescribeProperties(extras).c_str());
+  std::printf("NaN/Inf values:  %zu\n", data.non_finite_count);
+  PrintRanges(m);
+  return 0;
+}
+
+}  // namespace
+
+WATERGS_COMMAND(ply_info,
+                "Prints a 3DGS PLY's count, SH degree, layout, ranges, NaN/Inf",
+                RunPlyInfo);
