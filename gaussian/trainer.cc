@@ -1,0 +1,377 @@
+// The 3DGS training loop (see trainer.h).
+#include "gaussian/trainer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "gaussian/progress.h"
+#include "gaussian/projection.h"
+
+namespace watergs {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+std::string RngState(const std::mt19937_64& rng) {
+  std::ostringstream out;
+  out << rng;
+  return out.str();
+}
+
+size_t GradientBytesPerGaussian(const GaussianModel& model) {
+  // Parameter gradients, mean2d norms (two), visibility byte.
+  const size_t floats = 3 + 3 + 4 + 1 + 3 + model.sh_rest_stride();
+  return floats * sizeof(float) + 2 * sizeof(float) + 1;
+}
+
+}  // namespace
+
+void InMemoryViews::Add(std::string name, const RenderCamera& camera,
+                        ImageRGB image) {
+  names_.push_back(std::move(name));
+  cameras_.push_back(camera);
+  images_.push_back(std::make_shared<const ImageRGB>(std::move(image)));
+}
+
+EvalResult EvaluateViews(Rasterizer& rasterizer, const GaussianModel& model,
+                         const TrainingViews& source,
+                         const std::vector<size_t>& views,
+                         const std::array<float, 3>& background,
+                         int active_sh_degree, std::vector<ImageRGB>* renders) {
+  EvalResult result;
+  RenderOptions options;
+  options.background = background;
+  options.active_sh_degree = active_sh_degree;
+  ImageRGB image;
+  for (size_t view : views) {
+    rasterizer.Forward(model, source.Camera(view), options, &image, nullptr);
+    for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+    const std::shared_ptr<const ImageRGB> truth = source.Image(view);
+    const double psnr = Psnr(image, *truth);
+    const double ssim = Ssim(image, *truth);
+    result.view_psnr.push_back(psnr);
+    result.view_ssim.push_back(ssim);
+    result.psnr += psnr;
+    result.ssim += ssim;
+    result.l1 += L1(image, *truth);
+    if (renders) renders->push_back(image);
+  }
+  result.num_views = views.size();
+  if (!views.empty()) {
+    result.psnr /= views.size();
+    result.ssim /= views.size();
+    result.l1 /= views.size();
+  }
+  return result;
+}
+
+Trainer::Trainer(const TrainerOptions& options, const TrainingViews& views,
+                 std::vector<size_t> train_views, GaussianModel initial,
+                 double scene_extent, std::unique_ptr<Rasterizer> rasterizer,
+                 std::unique_ptr<DensityStrategy> strategy)
+    : options_(options),
+      views_(views),
+      train_views_(std::move(train_views)),
+      model_(std::move(initial)),
+      scene_extent_(scene_extent),
+      rasterizer_(std::move(rasterizer)),
+      strategy_(std::move(strategy)),
+      adam_(options.adam, scene_extent),
+      loss_(options.lambda_dssim),
+      rng_(options.seed) {
+  if (train_views_.empty()) Fail("training: no training views");
+  for (size_t v : train_views_) {
+    if (v >= views_.NumViews()) Fail("training: view index out of range");
+  }
+  if (!strategy_) {
+    DensityOptions density = options_.density;
+    density.seed = options_.seed ^ 0x9e3779b97f4a7c15ull;
+    strategy_ = MakeInriaDensityStrategy(density, scene_extent_);
+  }
+  adam_.Init(model_);
+  strategy_->Init(model_);
+}
+
+std::string Trainer::RunSignature() const {
+  nlohmann::json j;
+  j["iterations"] = options_.iterations;
+  j["seed"] = options_.seed;
+  j["sh_degree"] = model_.sh_degree;
+  j["background"] = options_.background;
+  j["train_views"] = train_views_.size();
+  j["lambda_dssim"] = options_.lambda_dssim;
+  j["position_lr_max_steps"] = options_.adam.position_lr_max_steps;
+  return j.dump();
+}
+
+size_t Trainer::NextView() {
+  if (view_stack_.empty()) {
+    for (size_t i = 0; i < train_views_.size(); ++i) {
+      view_stack_.push_back(static_cast<uint32_t>(i));
+    }
+  }
+  // Inria pops a uniformly random entry of the remaining views.
+  const size_t pick = rng_() % view_stack_.size();
+  const uint32_t view = view_stack_[pick];
+  view_stack_.erase(view_stack_.begin() + pick);
+  return train_views_[view];
+}
+
+void Trainer::ComputeRadii(const RenderCamera& camera) {
+  const ProjectionCamera cam = MakeProjectionCamera(camera);
+  const int64_t n = static_cast<int64_t>(model_.size());
+  radii_.assign(n, 0.f);
+#pragma omp parallel for schedule(static)
+  for (int64_t i = 0; i < n; ++i) {
+    if (!grads_.visible[i]) continue;
+    ProjectedGaussian p;
+    if (ProjectForward(cam, &model_.means[3 * i], &model_.log_scales[3 * i],
+                       &model_.quats[4 * i], &p)) {
+      radii_[i] = static_cast<float>(p.radius);
+    }
+  }
+}
+
+IterationStats Trainer::Step() {
+  const int64_t it = iteration_ + 1;
+  IterationStats stats;
+  stats.iteration = it;
+  adam_.SetIteration(it);
+  if (options_.sh_increase_interval > 0 &&
+      it % options_.sh_increase_interval == 0 &&
+      active_sh_degree_ < model_.sh_degree) {
+    ++active_sh_degree_;
+  }
+  const size_t view = NextView();
+  const RenderCamera camera = views_.Camera(view);
+  const std::shared_ptr<const ImageRGB> truth = views_.Image(view);
+
+  RenderOptions render_options;
+  render_options.background = options_.background;
+  render_options.active_sh_degree = active_sh_degree_;
+  auto t0 = Clock::now();
+  std::unique_ptr<RenderContext> context;
+  rasterizer_->Forward(model_, camera, render_options, &render_, &context);
+  auto t1 = Clock::now();
+  stats.loss = loss_.Evaluate(render_, *truth, &grad_image_);
+  auto t2 = Clock::now();
+  if (!std::isfinite(stats.loss.total)) {
+    FlushLog();
+    std::string kept =
+        last_checkpoint_.empty()
+            ? "no checkpoint was written (use "
+              "--checkpoint_every)"
+            : "the last checkpoint is " + last_checkpoint_ + " (iteration " +
+                  std::to_string(last_checkpoint_iteration_) + ")";
+    Fail("training stopped at iteration " + std::to_string(it) +
+         ": the loss is not finite (" + std::to_string(stats.loss.total) +
+         ") on view " + views_.Name(view) + "; " + kept);
+  }
+  rasterizer_->Backward(model_, *context, grad_image_, &grads_);
+  context.reset();
+  auto t3 = Clock::now();
+  const std::vector<float>* radii = nullptr;
+  if (strategy_->WantsRadii(it)) {
+    ComputeRadii(camera);
+    radii = &radii_;
+  }
+  const DensityEvent event =
+      strategy_->PostBackward(it, grads_, radii, &model_, &adam_);
+  auto t4 = Clock::now();
+  // Inria: tensors replaced by densification or an opacity reset have no
+  // gradient at this step, and the last iteration takes no step.
+  if (it < options_.iterations && !event.densified) {
+    const bool opacity_enabled = adam_.GroupEnabled(ParamGroup::kOpacity);
+    if (event.opacity_reset) adam_.SetGroupEnabled(ParamGroup::kOpacity, false);
+    adam_.Step(grads_, &model_);
+    adam_.SetGroupEnabled(ParamGroup::kOpacity, opacity_enabled);
+  }
+  auto t5 = Clock::now();
+  stats.forward_s = Seconds(t0, t1);
+  stats.loss_s = Seconds(t1, t2);
+  stats.backward_s = Seconds(t2, t3);
+  stats.density_s = Seconds(t3, t4);
+  stats.adam_s = Seconds(t4, t5);
+  stats.num_gaussians = model_.size();
+  stats.cloned = event.cloned;
+  stats.split = event.split;
+  stats.pruned = event.pruned;
+  iteration_ = it;
+  elapsed_seconds_ += Seconds(t0, t5);
+  return stats;
+}
+
+void Trainer::AppendLog(const IterationStats& stats, const EvalResult* test) {
+  nlohmann::json j;
+  j["iteration"] = stats.iteration;
+  j["loss"] = stats.loss.total;
+  j["l1"] = stats.loss.l1;
+  j["ssim"] = stats.loss.ssim;
+  j["num_gaussians"] = stats.num_gaussians;
+  j["seconds"] = std::round(elapsed_seconds_ * 1000) / 1000;
+  if (test) {
+    j["test_psnr"] = test->psnr;
+    j["test_ssim"] = test->ssim;
+    j["test_l1"] = test->l1;
+  }
+  log_lines_.push_back(j.dump());
+}
+
+void Trainer::FlushLog() {
+  if (options_.log_path.empty()) return;
+  std::string text;
+  for (const std::string& line : log_lines_) text += line + "\n";
+  AtomicWriteFile(options_.log_path, text);
+}
+
+void Trainer::Run() {
+  std::unique_ptr<ProgressBar> bar;
+  if (options_.show_progress) {
+    bar =
+        std::make_unique<ProgressBar>("train", options_.iterations, iteration_);
+  }
+  auto last_flush = Clock::now();
+  double loss_ema = 0;
+  while (iteration_ < options_.iterations) {
+    const IterationStats stats = Step();
+    loss_ema = stats.iteration == 1 || loss_ema == 0
+                   ? stats.loss.total
+                   : 0.4 * stats.loss.total + 0.6 * loss_ema;
+    const int64_t it = stats.iteration;
+    const bool test_now = !options_.test_views.empty() &&
+                          std::find(options_.test_iterations.begin(),
+                                    options_.test_iterations.end(),
+                                    it) != options_.test_iterations.end();
+    EvalResult test;
+    if (test_now) {
+      test = EvaluateViews(*rasterizer_, model_, views_, options_.test_views,
+                           options_.background, active_sh_degree_);
+    }
+    if (test_now || it == 1 || it == options_.iterations ||
+        (options_.log_every > 0 && it % options_.log_every == 0)) {
+      AppendLog(stats, test_now ? &test : nullptr);
+    }
+    if (options_.checkpoint_every > 0 && it % options_.checkpoint_every == 0 &&
+        !options_.checkpoint_path.empty()) {
+      SaveCheckpoint(options_.checkpoint_path);
+      FlushLog();
+      last_flush = Clock::now();
+    } else if (Seconds(last_flush, Clock::now()) > 30) {
+      FlushLog();
+      last_flush = Clock::now();
+    }
+    if (bar) {
+      char status[96];
+      std::snprintf(status, sizeof(status), "loss %.4f  %zu Gaussians",
+                    loss_ema, stats.num_gaussians);
+      std::string line = status;
+      if (test_now) line += "  test PSNR " + std::to_string(test.psnr);
+      bar->Update(it, line);
+    }
+  }
+  FlushLog();
+  if (bar) {
+    bar->Finish(std::to_string(model_.size()) + " Gaussians");
+  }
+}
+
+TrainingCheckpoint Trainer::MakeCheckpoint() const {
+  TrainingCheckpoint c;
+  c.iteration = iteration_;
+  c.active_sh_degree = active_sh_degree_;
+  c.elapsed_seconds = elapsed_seconds_;
+  c.model = model_;
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    c.adam[g] = adam_.state(static_cast<ParamGroup>(g));
+  }
+  c.adam_rejected = adam_.rejected_total();
+  c.density_state = strategy_->SaveState();
+  c.rng_state = RngState(rng_);
+  c.view_stack = view_stack_;
+  c.run_signature = RunSignature();
+  return c;
+}
+
+void Trainer::SaveCheckpoint(const std::string& path) {
+  WriteCheckpoint(path, MakeCheckpoint());
+  last_checkpoint_ = path;
+  last_checkpoint_iteration_ = iteration_;
+}
+
+void Trainer::Resume(const std::string& checkpoint_path) {
+  TrainingCheckpoint c = ReadCheckpoint(checkpoint_path);
+  if (c.model.sh_degree != model_.sh_degree) {
+    FailAt(checkpoint_path,
+           "checkpoint has SH degree " + std::to_string(c.model.sh_degree) +
+               ", this run " + std::to_string(model_.sh_degree));
+  }
+  if (c.run_signature != RunSignature()) {
+    FailAt(checkpoint_path,
+           "checkpoint was written by a run with other "
+           "options: " +
+               c.run_signature + " vs " + RunSignature());
+  }
+  model_ = std::move(c.model);
+  adam_.Init(model_);
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    AdamGroupState& s = adam_.state(static_cast<ParamGroup>(g));
+    if (c.adam[g].exp_avg.size() != s.exp_avg.size() ||
+        c.adam[g].exp_avg_sq.size() != s.exp_avg_sq.size()) {
+      FailAt(checkpoint_path,
+             "checkpoint optimiser state does not match "
+             "its model");
+    }
+    s = std::move(c.adam[g]);
+  }
+  adam_.set_rejected_total(c.adam_rejected);
+  strategy_->Init(model_);
+  strategy_->LoadState(c.density_state);
+  std::istringstream rng_in(c.rng_state);
+  rng_in >> rng_;
+  if (!rng_in) FailAt(checkpoint_path, "checkpoint RNG state is corrupt");
+  for (uint32_t v : c.view_stack) {
+    if (v >= train_views_.size()) {
+      FailAt(checkpoint_path, "checkpoint view order does not match");
+    }
+  }
+  view_stack_ = std::move(c.view_stack);
+  iteration_ = c.iteration;
+  active_sh_degree_ = c.active_sh_degree;
+  elapsed_seconds_ = c.elapsed_seconds;
+  last_checkpoint_ = checkpoint_path;
+  last_checkpoint_iteration_ = iteration_;
+  // Keep the log lines the checkpoint covers.
+  log_lines_.clear();
+  if (!options_.log_path.empty() &&
+      std::filesystem::exists(options_.log_path)) {
+    std::ifstream in(options_.log_path);
+    std::string line;
+    while (std::getline(in, line)) {
+      const auto j = nlohmann::json::parse(line, nullptr, false);
+      if (j.is_discarded() || !j.contains("iteration")) continue;
+      if (j["iteration"].get<int64_t>() <= iteration_) {
+        log_lines_.push_back(line);
+      }
+    }
+  }
+}
+
+size_t Trainer::StateBytesPerGaussian() const {
+  const size_t params =
+      (3 + 3 + 4 + 1 + 3 + model_.sh_rest_stride()) * sizeof(float);
+  return params + adam_.BytesPerGaussian() + GradientBytesPerGaussian(model_) +
+         strategy_->BytesPerGaussian();
+}
+
+}  // namespace watergs
