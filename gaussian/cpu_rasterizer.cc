@@ -128,7 +128,7 @@ void CpuRasterizer::Forward(const GaussianModel& model,
       TilesCoveringRect(rect.x0, rect.y0, rect.width, rect.height);
   std::vector<Splat> all(n);
   std::vector<TileRange> all_tiles(n);
-  std::vector<float> depth(n);
+  std::vector<double> depth(n);
   std::vector<uint8_t> binned(n, 0), clamped(n, 0);
   ctx->visible.assign(n, 0);
   const ProjectionCamera& cam = ctx->camera;
@@ -148,7 +148,7 @@ void CpuRasterizer::Forward(const GaussianModel& model,
     all_tiles[i] = Intersect(Intersect(p.tiles, render_tiles), support);
     if (all_tiles[i].empty()) continue;
     binned[i] = 1;
-    depth[i] = static_cast<float>(p.depth);
+    depth[i] = p.depth;
     clamped[i] = ShadeSplat(model, i, ctx->active_sh_degree, cam, &all[i]);
   }
   std::vector<uint32_t>& ids = ctx->splat_ids;

@@ -57,6 +57,10 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
   s.conic = cov.inverse();
   s.mean = Eigen::Vector2d(cam.fx * t.x() / t.z() + cam.cx,
                            cam.fy * t.y() / t.z() + cam.cy);
+  if (!m.screen_offsets.empty()) {
+    s.mean +=
+        Eigen::Vector2d(m.screen_offsets[2 * i], m.screen_offsets[2 * i + 1]);
+  }
   const double mid = 0.5 * cov.trace();
   const double lambda =
       mid + std::sqrt(std::max(0.1, mid * mid - cov.determinant()));

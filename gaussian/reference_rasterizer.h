@@ -18,6 +18,9 @@ struct ReferenceModel {
   // Same meaning and layout as GaussianModel's fields.
   int sh_degree = 3;
   std::vector<double> means, log_scales, quats, opacity_logits, sh_dc, sh_rest;
+  // Optional N x 2 pixel shifts added to the projected means (empty: none),
+  // so tests can differentiate with respect to the screen-space mean.
+  std::vector<double> screen_offsets;
   // Number of Gaussians.
   size_t size() const { return opacity_logits.size(); }
   // Floats of sh_rest per Gaussian.
