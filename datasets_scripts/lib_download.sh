@@ -1,0 +1,126 @@
+# Shared helpers for the download_*.sh scripts (sourced, not run).
+# Downloads resume where they stopped, are checked against a known MD5 where one is published, and
+# land in a cache folder (WATERGS_DOWNLOAD_CACHE, default <out_dir>/.downloads) that survives re-runs.
+
+log() { echo "$(basename "$0"): $*" >&2; }
+die() { log "error: $*"; exit 1; }
+
+require_tools() {
+  local tool
+  for tool in "$@"; do
+    command -v "$tool" >/dev/null || die "'$tool' is required (Debian: apt-get install $tool)"
+  done
+}
+
+# fetch URL DEST [MD5]: downloads URL to DEST (resuming a partial DEST.part), then checks MD5 if given.
+fetch() {
+  local url="$1" dest="$2" md5="${3:-}"
+  if [ -f "$dest" ]; then
+    log "using cached $dest"
+  else
+    log "downloading $url"
+    mkdir -p "$(dirname "$dest")"
+    if command -v curl >/dev/null; then
+      curl -fL --retry 5 --retry-delay 5 -C - -o "$dest.part" "$url" || die "download failed: $url"
+    elif command -v wget >/dev/null; then
+      wget -c -t 5 -O "$dest.part" "$url" || die "download failed: $url"
+    else
+      die "neither curl nor wget is installed (apt-get install curl)"
+    fi
+    mv "$dest.part" "$dest"
+  fi
+  verify_md5 "$dest" "$md5"
+}
+
+# verify_md5 FILE [MD5]: checks FILE, or prints its MD5 so it can be recorded when none is known.
+verify_md5() {
+  local file="$1" expected="${2:-}" actual
+  actual="$(md5sum "$file" | cut -d' ' -f1)"
+  if [ -z "$expected" ]; then
+    log "no published checksum for $(basename "$file"); its MD5 is $actual"
+  elif [ "$actual" != "$expected" ]; then
+    rm -f "$file"
+    die "$(basename "$file") has MD5 $actual, expected $expected (removed; run again to re-download)"
+  else
+    log "checksum OK: $(basename "$file")"
+  fi
+}
+
+# fetch_gdrive FILE_ID DEST [MD5]: Google Drive file; uses gdown when installed, else the
+# confirm=t download endpoint that skips the virus-scan page for large files.
+fetch_gdrive() {
+  local id="$1" dest="$2" md5="${3:-}"
+  if [ ! -f "$dest" ] && command -v gdown >/dev/null; then
+    log "downloading Google Drive file $id with gdown"
+    gdown --continue "$id" -O "$dest.part" || die "gdown failed for $id"
+    mv "$dest.part" "$dest"
+  fi
+  fetch "https://drive.usercontent.google.com/download?id=${id}&export=download&confirm=t" "$dest" "$md5"
+  if head -c 512 "$dest" | grep -qi "<html"; then
+    rm -f "$dest"
+    die "Google Drive returned a web page instead of $(basename "$dest") (quota or link change);" \
+      "download it by hand into $(dirname "$dest") and run again"
+  fi
+}
+
+# unpack_folder ZIP PREFIX DEST: extracts the entries under PREFIX/ of ZIP into DEST (replacing DEST),
+# through a scratch folder so an interrupted run leaves no half-filled DEST.
+unpack_folder() {
+  local zip="$1" prefix="$2" dest="$3" scratch
+  scratch="$(mktemp -d "${dest%/}.unpacking.XXXXXX")"
+  log "unpacking $prefix from $(basename "$zip")"
+  unzip -q -o "$zip" "$prefix/*" -d "$scratch" || { rm -rf "$scratch"; die "cannot unpack $prefix from $zip"; }
+  [ -d "$scratch/$prefix" ] || { rm -rf "$scratch"; die "$zip has no folder $prefix"; }
+  rm -rf "$dest"
+  mv "$scratch/$prefix" "$dest"
+  rm -rf "$scratch"
+}
+
+# count_images DIR: number of image files directly in DIR.
+count_images() {
+  find "$1" -maxdepth 1 -type f \( -iname '*.jpg' -o -iname '*.jpeg' -o -iname '*.png' \) | wc -l
+}
+
+# match_downscaled_names SCENE: the CLI reads SCENE/images_N/<name> with <name> exactly as in
+# sparse/0 (the name of the full-resolution image). A downscaled folder whose files carry other names
+# but pair one-to-one in sorted order is renamed to those names (decoders look at the content, not the
+# extension); one that cannot be paired is removed, and the CLI then resizes the full images itself.
+match_downscaled_names() {
+  local scene="$1" folder full_names small_names i
+  mapfile -t full_names < <(cd "$scene/images" && ls | LC_ALL=C sort)
+  for folder in "$scene"/images_*; do
+    [ -d "$folder" ] || continue
+    mapfile -t small_names < <(cd "$folder" && ls | LC_ALL=C sort)
+    if [ "${small_names[*]}" == "${full_names[*]}" ]; then
+      continue
+    fi
+    if [ "${#small_names[@]}" -ne "${#full_names[@]}" ]; then
+      log "warning: $folder holds ${#small_names[@]} files, images holds ${#full_names[@]}: removing it"
+      rm -rf "$folder"
+      continue
+    fi
+    log "renaming $folder to the full-resolution image names (sorted order)"
+    for i in "${!small_names[@]}"; do
+      mv "$folder/${small_names[$i]}" "$folder/.renaming_$i"
+    done
+    for i in "${!small_names[@]}"; do
+      mv "$folder/.renaming_$i" "$folder/${full_names[$i]}"
+    done
+  done
+}
+
+# check_colmap_scene SCENE: the layout the watergs CLI expects, or a clear error.
+check_colmap_scene() {
+  local scene="$1" file
+  [ -d "$scene/images" ] || die "$scene/images is missing"
+  for file in cameras images points3D; do
+    [ -f "$scene/sparse/0/$file.bin" ] || [ -f "$scene/sparse/0/$file.txt" ] \
+      || die "$scene/sparse/0/$file.bin (or .txt) is missing"
+  done
+  local summary="$(count_images "$scene/images") images"
+  local folder
+  for folder in "$scene"/images_*; do
+    [ -d "$folder" ] && summary+=", $(basename "$folder")"
+  done
+  log "ready: $scene ($summary)"
+}

@@ -1,0 +1,127 @@
+#!/usr/bin/env bash
+# Regenerates the embedded demo scene: renders demo_scene.pov with POV-Ray from two rings of 24 cameras
+# (48 views, 480x360) and reconstructs it with COLMAP (CPU SIFT, exhaustive matching, incremental mapper).
+#
+# Usage: bash datasets_scripts/make_demo_scene.sh [--variant 1|2] [--keep-database] [out_dir]
+#   out_dir defaults to datasets_scripts/demo_scene (variant 1, the committed scene) and
+#   datasets_scripts/demo_scene_v2 (variant 2). Writes:
+#     out_dir/images/view_NNN.jpg          JPEG quality 90, no render-date metadata
+#     out_dir/sparse/0/{cameras,images,points3D}.bin
+#     out_dir/ground_truth/{cameras,images,points3D}.txt   the POV-Ray poses as a COLMAP text model
+#                                                          (world = POV-Ray (x, z, y), z up; match by NAME)
+# Needs: povray, povray-includes, colmap (3.8), python3. Deterministic: single-threaded matching and mapping,
+# fixed COLMAP seed; the same machine gives byte-identical output.
+set -euo pipefail
+
+script_dir="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+variant=1
+keep_database=0
+out_dir=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --variant) variant="${2:?--variant needs 1 or 2}"; shift 2 ;;
+    --keep-database) keep_database=1; shift ;;
+    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+    -*) echo "make_demo_scene: unknown option $1" >&2; exit 2 ;;
+    *) out_dir="$1"; shift ;;
+  esac
+done
+case "$variant" in
+  1) default_dir="$script_dir/demo_scene" ;;
+  2) default_dir="$script_dir/demo_scene_v2" ;;
+  *) echo "make_demo_scene: --variant must be 1 or 2, got '$variant'" >&2; exit 2 ;;
+esac
+out_dir="${out_dir:-$default_dir}"
+
+for tool in povray colmap python3; do
+  command -v "$tool" >/dev/null || { echo "make_demo_scene: '$tool' not found (run scripts/install_deps.sh)" >&2; exit 1; }
+done
+
+readonly width=480 height=360 fov_deg=60 jpeg_quality=90
+threads="$(nproc)"
+tools="$script_dir/demo_scene_tools.py"
+start_seconds=$SECONDS
+export QT_QPA_PLATFORM=offscreen
+
+# Build everything in a scratch folder next to the output and move it into place at the end, so a failed
+# run never leaves a half-written scene.
+mkdir -p "$(dirname "$out_dir")"
+work="$(mktemp -d "${out_dir%/}.tmp.XXXXXX")"
+trap 'rm -rf "$work"' EXIT
+mkdir -p "$work/images" "$work/sparse" "$work/logs"
+
+echo "make_demo_scene: variant $variant -> $out_dir"
+python3 "$tools" poses "$variant" "$width" "$height" "$fov_deg" "$work/ground_truth" >"$work/views.txt"
+num_views=$(wc -l <"$work/views.txt")
+
+echo "make_demo_scene: rendering $num_views views at ${width}x${height} with POV-Ray"
+while read -r name cam_x cam_y cam_z look_x look_y look_z; do
+  # POV-Ray writes the render date into JPEG comments; strip it so output is reproducible.
+  povray -I"$script_dir/demo_scene.pov" +O"$work/images/$name" +FJ Compression=$jpeg_quality \
+    +W$width +H$height -D -V +A0.3 +R3 +WT"$threads" \
+    Declare=Variant="$variant" Declare=FovDeg=$fov_deg \
+    Declare=CamX="$cam_x" Declare=CamY="$cam_y" Declare=CamZ="$cam_z" \
+    Declare=LookX="$look_x" Declare=LookY="$look_y" Declare=LookZ="$look_z" \
+    >"$work/logs/povray_$name.log" 2>&1 \
+    || { echo "make_demo_scene: POV-Ray failed on $name:" >&2; tail -20 "$work/logs/povray_$name.log" >&2; exit 1; }
+  python3 "$tools" strip-jpeg "$work/images/$name"
+done <"$work/views.txt"
+echo "make_demo_scene: rendered in $((SECONDS - start_seconds)) s"
+
+# PINHOLE with the known focal length: the renders are exact pinholes, so a distortion-free model is the
+# truth, and pinhole scenes need no undistortion before 3DGS training (what Inria's convert.py produces too).
+focal=$(awk -v w=$width -v fov=$fov_deg 'BEGIN { printf "%.6f", (w / 2) / (sin(fov * 3.14159265358979 / 360) / cos(fov * 3.14159265358979 / 360)) }')
+camera_params="$focal,$focal,$((width / 2)),$((height / 2))"
+database="$work/database.db"
+
+run_colmap() {
+  local step="$1"; shift
+  colmap "$step" "$@" >"$work/logs/colmap_$step.log" 2>&1 \
+    || { echo "make_demo_scene: colmap $step failed:" >&2; tail -30 "$work/logs/colmap_$step.log" >&2; exit 1; }
+}
+
+echo "make_demo_scene: colmap feature_extractor (CPU SIFT, PINHOLE $camera_params)"
+run_colmap feature_extractor --database_path "$database" --image_path "$work/images" \
+  --ImageReader.camera_model PINHOLE --ImageReader.single_camera 1 \
+  --ImageReader.camera_params "$camera_params" \
+  --SiftExtraction.use_gpu 0 --SiftExtraction.num_threads "$threads" \
+  --SiftExtraction.max_num_features 4096
+echo "make_demo_scene: colmap exhaustive_matcher"
+# One thread: RANSAC draws from per-thread generators, so a single thread makes the matches reproducible.
+run_colmap exhaustive_matcher --database_path "$database" \
+  --SiftMatching.use_gpu 0 --SiftMatching.num_threads 1
+echo "make_demo_scene: colmap mapper"
+run_colmap mapper --database_path "$database" --image_path "$work/images" --output_path "$work/sparse" \
+  --Mapper.num_threads 1 --Mapper.ba_refine_principal_point 0
+
+if [ ! -f "$work/sparse/0/images.bin" ]; then
+  echo "make_demo_scene: COLMAP produced no model" >&2; exit 1
+fi
+if [ -d "$work/sparse/1" ]; then
+  echo "make_demo_scene: COLMAP split the scene into several models ($(ls "$work/sparse" | tr '\n' ' '))" >&2
+  exit 1
+fi
+rm -f "$work/sparse/0/project.ini"
+
+run_colmap model_analyzer --path "$work/sparse/0"
+analysis="$work/logs/colmap_model_analyzer.log"
+registered=$(sed -n 's/.*Registered images: *\([0-9]*\).*/\1/p' "$analysis")
+points=$(sed -n 's/.*Points: *\([0-9]*\).*/\1/p' "$analysis")
+reprojection=$(sed -n 's/.*Mean reprojection error: *\([0-9.]*\).*/\1/p' "$analysis")
+track_length=$(sed -n 's/.*Mean track length: *\([0-9.]*\).*/\1/p' "$analysis")
+echo "make_demo_scene: registered images $registered / $num_views, points $points," \
+  "mean track length $track_length, mean reprojection error ${reprojection}px"
+if [ "$registered" != "$num_views" ]; then
+  echo "make_demo_scene: only $registered of $num_views images registered" >&2
+  exit 1
+fi
+python3 "$tools" compare "$work/sparse/0" "$work/ground_truth"
+
+if [ "$keep_database" -eq 1 ]; then mv "$database" "$work/logs/"; else rm -f "$database"; fi
+rm -f "$work/views.txt"
+[ "$keep_database" -eq 1 ] || rm -rf "$work/logs"
+rm -rf "$out_dir"
+mv "$work" "$out_dir"
+trap - EXIT
+chmod -R a+rX "$out_dir"
+echo "make_demo_scene: wrote $out_dir ($(du -sh "$out_dir" | cut -f1)) in $((SECONDS - start_seconds)) s"
