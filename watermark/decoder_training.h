@@ -1,0 +1,97 @@
+// End-to-end training of the HiDDeN encoder and decoder (paper, "Universal
+// Watermark Decoder"): random crops of natural photos, random messages,
+// loss image_weight * MSE(cover, watermarked) + BCE(message, logits), one 2D
+// noise layer sampled per step, Adam, checkpoints, resume and per-epoch
+// validation on held-out photos.
+#pragma once
+
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "watermark/hidden_model.h"
+#include "watermark/image_noise.h"
+
+namespace watergs {
+
+struct DecoderTrainingOptions {
+  // Folder of training photos (jpg/png), searched recursively.
+  std::string image_path;
+  // Folder of held-out photos; empty: no validation.
+  std::string validation_path;
+  // Weights file (decoder + encoder); its checkpoint is output_path + ".ckpt".
+  std::string output_path;
+  HiddenConfig config;
+  // Square training crop side in pixels.
+  int crop = 128;
+  // Center-crop side for validation (0: whole held-out photos).
+  int validation_crop = 128;
+  int epochs = 10;
+  int batch_size = 8;
+  // Optimiser steps per epoch; 0: one crop per training photo.
+  int steps_per_epoch = 0;
+  float learning_rate = 1e-3f;
+  // Weight of MSE(cover, watermarked) on [-1,1] images.
+  float image_weight = 0.7f;
+  // > 0: image_weight is adapted (x1.02 per step when the running PSNR is
+  // below, /1.02 above) to hold this encoder PSNR in dB.
+  float target_psnr = 0.f;
+  // Noise layers sampled uniformly, one per step.
+  std::vector<NoiseKind> noise = {NoiseKind::kIdentity};
+  bool resume = false;
+  // Checkpoint every this many steps (and at every epoch end).
+  int checkpoint_every = 200;
+  // Stops cleanly (checkpoint + weights) after this many minutes; 0: never.
+  double max_minutes = 0;
+  uint32_t seed = 1;
+};
+
+// Validation figures on held-out photos.
+struct ValidationResult {
+  // Mean encoder PSNR (dB, images in [0,1], watermarked clamped).
+  double psnr = 0;
+  // Bit accuracy per noise kind, in NoiseKind order (identity first).
+  std::vector<std::pair<NoiseKind, double>> accuracy;
+  int images = 0;
+};
+
+// Photos in `dir` (recursive), RGB 8-bit; throws Error if none readable.
+std::vector<cv::Mat> LoadPhotoFolder(const std::string& dir);
+
+// Bit accuracy and PSNR of `model` on a center crop (side `crop`, the whole
+// photo when 0) of each photo, one fixed-seed random message per photo, under
+// no noise and each of the six noise layers.
+ValidationResult Validate(HiddenModel& model,
+                          const std::vector<cv::Mat>& photos, int crop,
+                          uint32_t seed);
+// One line per figure, e.g. "psnr 34.1 dB | identity 99.3% | crop 97.1% ...".
+std::string FormatValidation(const ValidationResult& result);
+
+// Figures of one training step.
+struct StepResult {
+  double bce = 0, psnr = 0, accuracy = 0;
+};
+
+// Reusable buffers of TrainStep.
+struct StepBuffers {
+  Tensor noised, dlogits, dnoised, dimage, dmse;
+};
+
+// One Adam step on cover [N,3,H,W] in [-1,1] with message bits `targets`
+// (N*L values 0/1) under noise `kind`: encoder, noise, decoder, loss
+// image_weight * MSE + BCE, backward through all three, update.
+StepResult TrainStep(HiddenModel& model, Adam& adam, ImageNoise& noise,
+                     NoiseKind kind, const Tensor& cover,
+                     const std::vector<float>& targets, float image_weight,
+                     std::mt19937* rng, StepBuffers* buffers);
+
+// Runs the whole training; writes output_path (atomically) at the end.
+void TrainDecoder(const DecoderTrainingOptions& options);
+
+// Converts 8-bit RGB pixels [y0,y0+h) x [x0,x0+w) of `photo` into slot b of
+// `batch` [N,3,h,w] in [-1,1].
+void PhotoToTensor(const cv::Mat& photo, int x0, int y0, int b, Tensor* batch);
+
+}  // namespace watergs
