@@ -1,0 +1,231 @@
+// `watergs train`: trains a 3DGS model on a COLMAP workspace (Inria's recipe)
+// and writes point_cloud.ply, cameras.json, train_log.jsonl and report.json.
+#include <omp.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "gaussian/ply_io.h"
+#include "gaussian/point_init.h"
+#include "gaussian/progress.h"
+#include "gaussian/trainer.h"
+#include "plugin/command.h"
+#include "plugin/option_parser.h"
+#include "plugin/training_views.h"
+#include "plugin/workspace.h"
+
+namespace {
+
+using namespace watergs;
+
+// "7000,30000" or "7000 30000" -> iterations; throws Error.
+std::vector<int64_t> ParseIterationList(const std::string& text) {
+  std::vector<int64_t> out;
+  std::string token;
+  std::istringstream in(text);
+  while (in >> token) {
+    std::istringstream parts(token);
+    std::string part;
+    while (std::getline(parts, part, ',')) {
+      if (part.empty()) continue;
+      try {
+        size_t used = 0;
+        out.push_back(std::stoll(part, &used));
+        if (used != part.size() || out.back() < 1) throw std::out_of_range("");
+      } catch (const std::logic_error&) {
+        Fail("--test_iterations: '" + part + "' is not a positive iteration");
+      }
+    }
+  }
+  return out;
+}
+
+struct TrainArgs {
+  WorkspaceOptions workspace;
+  std::string output_path;
+  int64_t iterations = 30000;
+  int sh_degree = 3;
+  std::string background = "0,0,0";
+  int64_t seed = 0;
+  int num_threads = 0;
+  bool eval = false;
+  int64_t checkpoint_every = 0;
+  bool resume = false;
+  std::string test_iterations = "7000,30000";
+  int64_t log_every = 10;
+  int64_t densify_until_iter = 15000;
+};
+
+void Validate(const TrainArgs& a) {
+  if (a.iterations < 1) Fail("--iterations must be at least 1");
+  if (a.sh_degree < 0 || a.sh_degree > 3) Fail("--sh_degree must be 0-3");
+  const int d = a.workspace.downscale;
+  if (d != 1 && d != 2 && d != 4 && d != 8) {
+    Fail("--downscale must be 1, 2, 4 or 8");
+  }
+  if (a.num_threads < 0) Fail("--num_threads must be >= 0 (0 = all cores)");
+  if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
+  if (a.log_every < 1) Fail("--log_every must be >= 1");
+}
+
+void WriteReport(const std::string& path, const TrainArgs& a,
+                 const Trainer& trainer, const EvalResult& eval,
+                 const std::string& split, const std::vector<size_t>& views,
+                 const TrainingViews& source, double extent) {
+  nlohmann::json j;
+  j["iterations"] = trainer.iteration();
+  j["num_gaussians"] = trainer.model().size();
+  j["train_seconds"] = trainer.elapsed_seconds();
+  j["iterations_per_second"] =
+      trainer.elapsed_seconds() > 0
+          ? trainer.iteration() / trainer.elapsed_seconds()
+          : 0.0;
+  j["scene_extent"] = extent;
+  j["seed"] = a.seed;
+  j["num_threads"] = omp_get_max_threads();
+  j["sh_degree"] = a.sh_degree;
+  j["eval"] = a.eval;
+  j["metrics_split"] = split;
+  j["num_metric_views"] = eval.num_views;
+  j["psnr"] = eval.psnr;
+  j["ssim"] = eval.ssim;
+  j["l1"] = eval.l1;
+  nlohmann::json per_view = nlohmann::json::array();
+  for (size_t k = 0; k < views.size(); ++k) {
+    per_view.push_back({{"name", source.Name(views[k])},
+                        {"psnr", eval.view_psnr[k]},
+                        {"ssim", eval.view_ssim[k]}});
+  }
+  j["views"] = per_view;
+  AtomicWriteFile(path, j.dump(2) + "\n");
+}
+
+int RunTrain(int argc, char** argv) {
+  TrainArgs a;
+  OptionParser parser("train",
+                      "Trains a 3D Gaussian Splatting model on a COLMAP "
+                      "workspace (Inria's 3DGS recipe).");
+  parser.AddRequired("workspace_path", &a.workspace.workspace_path,
+                     "COLMAP workspace (images/ and sparse/0)");
+  parser.Add("input_path", &a.workspace.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
+  parser.Add("image_path", &a.workspace.image_path,
+             "Image folder (default <workspace>/images)");
+  parser.AddRequired("output_path", &a.output_path, "Output folder");
+  parser.Add("iterations", &a.iterations, "Training iterations");
+  parser.Add("downscale", &a.workspace.downscale,
+             "Image downscale factor: 1, 2, 4 or 8");
+  parser.Add("sh_degree", &a.sh_degree, "Highest SH degree (0-3)");
+  parser.Add("background", &a.background,
+             "Background colour: r,g,b in [0, 1], black or white");
+  parser.Add("seed", &a.seed, "Random seed (view order, splits)");
+  parser.Add("num_threads", &a.num_threads,
+             "Threads (0 = all cores); results are reproducible for a given "
+             "seed and thread count");
+  parser.AddFlag("eval", &a.eval,
+                 "Hold out every 8th view (LLFF/Mip-NeRF 360) for metrics");
+  parser.Add("checkpoint_every", &a.checkpoint_every,
+             "Write OUT/checkpoint.ckpt every N iterations (0 = never)");
+  parser.AddFlag("resume", &a.resume,
+                 "Continue from OUT/checkpoint.ckpt (same options)");
+  parser.Add("test_iterations", &a.test_iterations,
+             "Iterations at which held-out PSNR is logged (with --eval)");
+  parser.Add("log_every", &a.log_every, "Write a log line every N iterations");
+  parser.Add("densify_until_iter", &a.densify_until_iter,
+             "Last iteration of adaptive density control (Inria: 15000)");
+  if (!parser.Parse(argc, argv)) return 0;
+  Validate(a);
+  if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
+  const std::array<float, 3> background = ParseBackground(a.background);
+  const std::vector<int64_t> test_iterations =
+      ParseIterationList(a.test_iterations);
+
+  CreateDirectories(a.output_path);
+  const std::string out = a.output_path;
+  const std::string checkpoint_path = out + "/checkpoint.ckpt";
+  if (a.resume && !std::filesystem::exists(checkpoint_path)) {
+    FailAt(checkpoint_path,
+           "no checkpoint to resume (train with --checkpoint_every N)");
+  }
+  const Workspace workspace = Workspace::Open(a.workspace);
+  const WorkspaceViews views(workspace);
+  const std::vector<size_t> train_views = workspace.TrainViews(a.eval);
+  const std::vector<size_t> test_views = workspace.TestViews(a.eval);
+  std::vector<float> xyz, rgb;
+  workspace.PointCloud(&xyz, &rgb);
+  if (xyz.empty()) {
+    FailAt(workspace.model_path(), "has no 3D points to initialise from");
+  }
+  const GaussianModel init = InitGaussiansFromPoints(xyz, rgb, a.sh_degree);
+  const double extent = workspace.SceneExtent();
+  const RenderCamera first = views.Camera(train_views.front());
+  std::printf(
+      "train: %zu training views, %zu held out, %dx%d, %zu SfM points, "
+      "scene extent %.3f, %d threads\n",
+      train_views.size(), test_views.size(), first.width, first.height,
+      init.size(), extent, omp_get_max_threads());
+
+  TrainerOptions options;
+  options.iterations = a.iterations;
+  options.background = background;
+  options.seed = static_cast<uint64_t>(a.seed);
+  options.adam.position_lr_max_steps = a.iterations;
+  options.density.densify_until_iter = a.densify_until_iter;
+  options.density.white_background =
+      background == std::array<float, 3>{1, 1, 1};
+  options.checkpoint_path = checkpoint_path;
+  options.checkpoint_every = a.checkpoint_every;
+  options.log_path = out + "/train_log.jsonl";
+  options.log_every = a.log_every;
+  options.test_views = test_views;
+  options.test_iterations = test_iterations;
+  options.show_progress = true;
+  Trainer trainer(options, views, train_views, init, extent,
+                  MakeCpuRasterizer());
+  if (a.resume) {
+    trainer.Resume(checkpoint_path);
+    std::printf("train: resumed at iteration %lld\n",
+                static_cast<long long>(trainer.iteration()));
+  }
+  trainer.Run();
+
+  WritePly(out + "/point_cloud.ply", trainer.model());
+  std::vector<size_t> all_views = test_views;
+  all_views.insert(all_views.end(), train_views.begin(), train_views.end());
+  WriteCamerasJson(out + "/cameras.json", views, all_views);
+  const bool held_out = !test_views.empty();
+  const std::vector<size_t>& metric_views = held_out ? test_views : train_views;
+  const EvalResult eval =
+      EvaluateViews(trainer.rasterizer(), trainer.model(), views, metric_views,
+                    background, trainer.active_sh_degree());
+  const std::string split = held_out ? "test" : "train";
+  WriteReport(out + "/report.json", a, trainer, eval, split, metric_views,
+              views, extent);
+
+  std::printf("train: %lld iterations in %s (%.1f it/s), %zu Gaussians\n",
+              static_cast<long long>(trainer.iteration()),
+              FormatDuration(trainer.elapsed_seconds()).c_str(),
+              trainer.elapsed_seconds() > 0
+                  ? trainer.iteration() / trainer.elapsed_seconds()
+                  : 0.0,
+              trainer.model().size());
+  std::printf("train: %s views (%zu): PSNR %.2f dB  SSIM %.4f  L1 %.4f\n",
+              held_out ? "held-out" : "training (no --eval)", eval.num_views,
+              eval.psnr, eval.ssim, eval.l1);
+  std::printf(
+      "train: wrote %s/{point_cloud.ply, cameras.json, train_log.jsonl, "
+      "report.json}\n",
+      out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+WATERGS_COMMAND(train, "Trains a 3DGS model on a COLMAP workspace", RunTrain);
