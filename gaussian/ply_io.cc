@@ -529,7 +529,9 @@ void CheckVertexCount(const std::string& path, uint64_t n, uint64_t data_bytes,
   // An ascii value takes at least one digit and one separator.
   const uint64_t min_row =
       layout.format == PlyFormat::kAscii ? 2 * layout.properties.size() : row;
-  if (min_row == 0 || n > data_bytes / min_row) {
+  // (+1: the last ascii value needs no separator.)
+  const uint64_t slack = layout.format == PlyFormat::kAscii ? 1 : 0;
+  if (min_row == 0 || n > (data_bytes + slack) / min_row) {
     FailAt(path, "header declares " + std::to_string(n) +
                      " vertices but the file has only " +
                      std::to_string(data_bytes) +

@@ -4,7 +4,11 @@
 // tools (any property order, missing normals, SH degree 0-3, extra or double
 // properties, ascii and big-endian). The reader returns a PlyLayout so that a
 // model can be written back in exactly the layout it came from: reading and
-// writing an unchanged model gives identical bytes.
+// writing an unchanged model gives identical bytes (binary files whose model
+// properties are float; double model properties are held as float, ascii
+// values are rewritten in shortest form, and bytes after the vertex data are
+// ignored). Gaussians added or removed after reading keep their extra
+// properties only through PlyLayout::RemapExtras (parent's values, or zeros).
 #pragma once
 
 #include <cstdint>

@@ -415,5 +415,22 @@ TEST(PlyIoErrors, WriterRefusesMismatchedLayoutWithoutTouchingOutput) {
   EXPECT_EQ(ReadAll(path), "previous");
 }
 
+TEST(PlyIo, ReadsTightestAsciiWithoutFinalNewline) {
+  GaussianModel model;
+  model.sh_degree = 0;
+  model.Resize(2);
+  const std::string inria = InriaBytes(model);
+  std::string ascii = Replace(inria.substr(0, inria.find("end_header\n") + 11),
+                              "binary_little_endian", "ascii");
+  for (int v = 0; v < 2; ++v) {
+    for (int p = 0; p < 17; ++p) {
+      if (v > 0 || p > 0) ascii += p == 0 ? "\n" : " ";
+      ascii += "0";
+    }
+  }
+  const PlyData data = ReadPly(WriteCase("tight.ply", ascii));
+  ExpectModelsEqual(data.model, model);
+}
+
 }  // namespace
 }  // namespace watergs
