@@ -107,13 +107,14 @@ inline Reconstruction MakeSyntheticReconstruction(
   for (int p = 0; p < options.num_points; ++p) {
     const point3D_t id = 1 + uint64_t(p) * 7919 % 100003;
     Point3D point;
-    point.xyz = Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
+    point.xyz = 2.5 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
     point.rgb << uint8_t(rng() % 256), uint8_t(rng() % 256),
         uint8_t(rng() % 256);
     point.error = p % 10 == 3 ? -1.0 : 0.2 + 0.65 * (unit(rng) + 1);
     for (Image& image : images) {
       const Camera& camera = model.GetCamera(image.camera_id);
       const Eigen::Vector3d X = image.RotationMatrix() * point.xyz + image.tvec;
+      if (X.z() < 0.5) continue;
       const Eigen::Vector2d xy = camera.WorldToImage(X.head<2>() / X.z());
       if (xy.x() < 0 || xy.y() < 0 || xy.x() >= options.width ||
           xy.y() >= options.height) {

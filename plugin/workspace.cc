@@ -1,0 +1,357 @@
+// Workspace: model + views + render cameras + cached image loading.
+#include "plugin/workspace.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <list>
+#include <map>
+#include <mutex>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <unordered_map>
+
+#include "gaussian/error.h"
+#include "plugin/image_header.h"
+#include "plugin/reconstruction_io.h"
+#include "plugin/undistortion.h"
+
+namespace watergs {
+
+namespace fs = std::filesystem;
+
+// Thread-safe LRU cache of decoded views plus the warp maps of distorted
+// cameras (few cameras are distorted at once, so maps are kept per camera).
+class ImageLoader {
+ public:
+  explicit ImageLoader(size_t capacity_bytes) : capacity_(capacity_bytes) {}
+
+  // The cached view, or nullptr-equivalent false.
+  bool Find(size_t view, ImageRGB* image) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = entries_.find(view);
+    if (it == entries_.end()) return false;
+    order_.splice(order_.begin(), order_, it->second.position);
+    *image = it->second.image;
+    return true;
+  }
+  void Insert(size_t view, const ImageRGB& image) {
+    const size_t bytes = image.data.size() * sizeof(float);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (bytes > capacity_ || entries_.count(view)) return;
+    while (used_ + bytes > capacity_ && !order_.empty()) {
+      const size_t oldest = order_.back();
+      used_ -= entries_.at(oldest).image.data.size() * sizeof(float);
+      entries_.erase(oldest);
+      order_.pop_back();
+    }
+    order_.push_front(view);
+    entries_[view] = {image, order_.begin()};
+    used_ += bytes;
+  }
+  // Warp map from `source` to `target`, computed once per camera id.
+  std::shared_ptr<const WarpMap> Map(const Camera& source,
+                                     const Camera& target) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto& map = maps_[source.camera_id];
+    if (!map) {
+      map = std::make_shared<const WarpMap>(ComputeWarpMap(source, target));
+    }
+    return map;
+  }
+
+ private:
+  struct Entry {
+    ImageRGB image;
+    std::list<size_t>::iterator position;
+  };
+  std::mutex mutex_;
+  size_t capacity_;
+  size_t used_ = 0;
+  std::list<size_t> order_;
+  std::unordered_map<size_t, Entry> entries_;
+  std::unordered_map<camera_t, std::shared_ptr<const WarpMap>> maps_;
+};
+
+namespace {
+
+std::string Quoted(const std::string& text) {
+  std::string quoted = "'";
+  for (const char c : text) {
+    quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  }
+  return quoted + "'";
+}
+
+// <parent>/<folder>_<k> for image folder <parent>/<folder>.
+std::string DownscaledImagePath(const std::string& image_path, int downscale) {
+  fs::path path = fs::path(image_path).lexically_normal();
+  if (path.filename().empty()) path = path.parent_path();
+  return (path.parent_path() /
+          (path.filename().string() + "_" + std::to_string(downscale)))
+      .string();
+}
+
+// Runs `colmap image_undistorter` into `output_path` unless it already
+// holds a model; returns the undistorted model folder.
+std::string RunColmapUndistorter(const WorkspaceOptions& options,
+                                 const std::string& model_path) {
+  const std::string sparse =
+      (fs::path(options.undistorted_path) / "sparse").string();
+  if (fs::is_regular_file(fs::path(sparse) / "cameras.bin")) return sparse;
+  fs::create_directories(options.undistorted_path);
+  const std::string log =
+      (fs::path(options.undistorted_path) / "image_undistorter.log").string();
+  const std::string command =
+      "QT_QPA_PLATFORM=offscreen colmap image_undistorter --image_path " +
+      Quoted(options.image_path) + " --input_path " + Quoted(model_path) +
+      " --output_path " + Quoted(options.undistorted_path) +
+      " --output_type COLMAP > " + Quoted(log) + " 2>&1";
+  const int status = std::system(command.c_str());
+  if (status != 0) {
+    FailAt(options.undistorted_path,
+           "colmap image_undistorter failed (status " + std::to_string(status) +
+               "); see " + log);
+  }
+  return sparse;
+}
+
+// Decodes an image as float RGB in [0, 1] (8- or 16-bit files), ignoring
+// EXIF orientation like COLMAP does.
+cv::Mat DecodeImage(const std::string& path) {
+  const cv::Mat raw = cv::imread(path, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH |
+                                           cv::IMREAD_IGNORE_ORIENTATION);
+  if (raw.empty()) FailAt(path, "cannot read or decode image");
+  const double scale = raw.depth() == CV_16U  ? 1.0 / 65535
+                       : raw.depth() == CV_8U ? 1.0 / 255
+                                              : 1.0;
+  cv::Mat rgb;
+  raw.convertTo(rgb, CV_32FC3, scale);
+  cv::cvtColor(rgb, rgb, cv::COLOR_BGR2RGB);
+  return rgb;
+}
+
+std::string SizeText(int width, int height) {
+  return std::to_string(width) + "x" + std::to_string(height);
+}
+
+ImageRGB ToImageRGB(const cv::Mat& rgb) {
+  ImageRGB image(rgb.cols, rgb.rows);
+  for (int row = 0; row < rgb.rows; ++row) {
+    const float* source = rgb.ptr<float>(row);
+    std::copy(source, source + 3 * rgb.cols, image.At(0, row));
+  }
+  for (float& value : image.data) value = std::clamp(value, 0.f, 1.f);
+  return image;
+}
+
+}  // namespace
+
+Workspace::Workspace(Workspace&&) noexcept = default;
+Workspace& Workspace::operator=(Workspace&&) noexcept = default;
+Workspace::~Workspace() = default;
+
+// Fills default paths, reads the model (through colmap image_undistorter if
+// asked), sorts the views and checks every image against its camera.
+Workspace Workspace::Open(const WorkspaceOptions& options) {
+  Workspace workspace;
+  WorkspaceOptions& opts = workspace.options_;
+  opts = options;
+  if (opts.workspace_path.empty() && opts.input_path.empty()) {
+    Fail("workspace: give --workspace_path or --input_path");
+  }
+  if (opts.downscale < 1) Fail("workspace: downscale must be >= 1");
+  if (opts.image_path.empty()) {
+    opts.image_path = (fs::path(opts.workspace_path) / "images").string();
+  }
+  if (opts.undistorted_path.empty()) {
+    opts.undistorted_path =
+        (fs::path(opts.workspace_path) / "undistorted_watergs").string();
+  }
+  workspace.model_path_ = FindModelPath(
+      opts.input_path.empty() ? opts.workspace_path : opts.input_path);
+  workspace.reconstruction_ = ReadReconstruction(workspace.model_path_);
+  bool any_distorted = false;
+  for (const auto& [id, camera] : workspace.reconstruction_.Cameras()) {
+    any_distorted |= camera.HasDistortion();
+  }
+  if (any_distorted && opts.use_colmap_undistorter) {
+    workspace.model_path_ = RunColmapUndistorter(opts, workspace.model_path_);
+    opts.image_path = (fs::path(opts.undistorted_path) / "images").string();
+    workspace.reconstruction_ = ReadReconstruction(workspace.model_path_);
+  }
+  if (!fs::is_directory(opts.image_path)) {
+    FailAt(opts.image_path, "image folder not found");
+  }
+  const Reconstruction& model = workspace.reconstruction_;
+  workspace.views_ = model.RegImageIds();
+  std::sort(workspace.views_.begin(), workspace.views_.end(),
+            [&](image_t a, image_t b) {
+              return model.GetImage(a).name < model.GetImage(b).name;
+            });
+  for (size_t view = 0; view < workspace.views_.size(); ++view) {
+    const Image& image = workspace.ViewImage(view);
+    const Camera& camera = model.GetCamera(image.camera_id);
+    workspace.undistorted_ |= camera.HasDistortion();
+    const std::string path = (fs::path(opts.image_path) / image.name).string();
+    if (!fs::is_regular_file(path)) {
+      FailAt(path, "missing (image " + std::to_string(image.image_id) +
+                       " of the model " + workspace.model_path_ + ")");
+    }
+    int width = 0, height = 0;
+    if (ReadImageHeaderSize(path, &width, &height) &&
+        (uint64_t(width) != camera.width ||
+         uint64_t(height) != camera.height)) {
+      FailAt(path, "is " + SizeText(width, height) + " but its camera " +
+                       std::to_string(camera.camera_id) + " is " +
+                       SizeText(camera.width, camera.height));
+    }
+  }
+  workspace.view_cameras_.resize(workspace.views_.size());
+  std::map<camera_t, Camera> pinholes;
+  for (size_t view = 0; view < workspace.views_.size(); ++view) {
+    const Image& image = workspace.ViewImage(view);
+    auto it = pinholes.find(image.camera_id);
+    if (it == pinholes.end()) {
+      it = pinholes
+               .emplace(image.camera_id,
+                        UndistortCamera(model.GetCamera(image.camera_id)))
+               .first;
+    }
+    const Camera& pinhole = it->second;
+    RenderCamera& camera = workspace.view_cameras_[view];
+    camera.width =
+        std::max<long>(1, std::lround(pinhole.width / double(opts.downscale)));
+    camera.height =
+        std::max<long>(1, std::lround(pinhole.height / double(opts.downscale)));
+    const double sx = camera.width / double(pinhole.width);
+    const double sy = camera.height / double(pinhole.height);
+    camera.fx = pinhole.params[0] * sx;
+    camera.fy = pinhole.params[1] * sy;
+    camera.cx = pinhole.params[2] * sx;
+    camera.cy = pinhole.params[3] * sy;
+    camera.R = image.RotationMatrix();
+    camera.t = image.tvec;
+  }
+  workspace.loader_ = std::make_unique<ImageLoader>(opts.image_cache_bytes);
+  return workspace;
+}
+
+const std::string& Workspace::ViewName(size_t view) const {
+  return ViewImage(view).name;
+}
+
+const Image& Workspace::ViewImage(size_t view) const {
+  if (view >= views_.size()) {
+    Fail("workspace: view " + std::to_string(view) + " out of range (" +
+         std::to_string(views_.size()) + " views)");
+  }
+  return reconstruction_.GetImage(views_[view]);
+}
+
+RenderCamera Workspace::ViewCamera(size_t view) const {
+  ViewImage(view);
+  return view_cameras_[view];
+}
+
+// Pinhole cameras at downscale k read <images>_k/<name> when that folder
+// exists (within one pixel of the expected size, resized if not exact);
+// otherwise the full image is decoded, undistorted if needed, then resized
+// with INTER_AREA. Distorted cameras always start from the full image.
+ImageRGB Workspace::LoadView(size_t view) const {
+  ImageRGB cached;
+  if (loader_->Find(view, &cached)) return cached;
+  const Image& image = ViewImage(view);
+  const Camera& camera = reconstruction_.GetCamera(image.camera_id);
+  const RenderCamera& target = view_cameras_[view];
+  const cv::Size target_size(target.width, target.height);
+  const std::string downscaled_folder =
+      DownscaledImagePath(options_.image_path, options_.downscale);
+  cv::Mat rgb;
+  if (options_.downscale > 1 && !camera.HasDistortion() &&
+      fs::is_directory(downscaled_folder)) {
+    const std::string path =
+        (fs::path(downscaled_folder) / image.name).string();
+    rgb = DecodeImage(path);
+    if (std::abs(rgb.cols - target.width) > 1 ||
+        std::abs(rgb.rows - target.height) > 1) {
+      FailAt(path, "is " + SizeText(rgb.cols, rgb.rows) + " but camera " +
+                       std::to_string(camera.camera_id) + " at downscale " +
+                       std::to_string(options_.downscale) + " is " +
+                       SizeText(target.width, target.height));
+    }
+  } else {
+    const std::string path =
+        (fs::path(options_.image_path) / image.name).string();
+    rgb = DecodeImage(path);
+    if (uint64_t(rgb.cols) != camera.width ||
+        uint64_t(rgb.rows) != camera.height) {
+      FailAt(path, "is " + SizeText(rgb.cols, rgb.rows) + " but its camera " +
+                       std::to_string(camera.camera_id) + " is " +
+                       SizeText(camera.width, camera.height));
+    }
+    if (camera.HasDistortion()) {
+      rgb = WarpImage(rgb, *loader_->Map(camera, UndistortCamera(camera)));
+    }
+  }
+  if (rgb.size() != target_size) {
+    cv::resize(rgb, rgb, target_size, 0, 0, cv::INTER_AREA);
+  }
+  ImageRGB result = ToImageRGB(rgb);
+  loader_->Insert(view, result);
+  return result;
+}
+
+std::vector<size_t> Workspace::TrainViews(bool eval) const {
+  std::vector<size_t> views;
+  for (size_t i = 0; i < views_.size(); ++i) {
+    if (!eval || i % 8 != 0) views.push_back(i);
+  }
+  return views;
+}
+
+std::vector<size_t> Workspace::TestViews(bool eval) const {
+  std::vector<size_t> views;
+  for (size_t i = 0; eval && i < views_.size(); ++i) {
+    if (i % 8 == 0) views.push_back(i);
+  }
+  return views;
+}
+
+void Workspace::PointCloud(std::vector<float>* xyz,
+                           std::vector<float>* rgb) const {
+  std::vector<point3D_t> ids;
+  ids.reserve(reconstruction_.NumPoints3D());
+  for (const auto& [id, point] : reconstruction_.Points3D()) ids.push_back(id);
+  std::sort(ids.begin(), ids.end());
+  xyz->clear();
+  rgb->clear();
+  xyz->reserve(3 * ids.size());
+  rgb->reserve(3 * ids.size());
+  for (const point3D_t id : ids) {
+    const Point3D& point = reconstruction_.GetPoint3D(id);
+    for (int k = 0; k < 3; ++k) {
+      xyz->push_back(static_cast<float>(point.xyz(k)));
+      rgb->push_back(point.rgb(k) / 255.f);
+    }
+  }
+}
+
+double Workspace::SceneExtent() const {
+  if (views_.empty()) return 0.0;
+  std::vector<Eigen::Vector3d> centers;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (size_t view = 0; view < views_.size(); ++view) {
+    centers.push_back(ViewImage(view).ProjectionCenter());
+    mean += centers.back();
+  }
+  mean /= double(centers.size());
+  double max_distance = 0;
+  for (const auto& center : centers) {
+    max_distance = std::max(max_distance, (center - mean).norm());
+  }
+  return 1.1 * max_distance;
+}
+
+}  // namespace watergs

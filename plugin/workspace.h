@@ -1,0 +1,89 @@
+// A COLMAP workspace opened for training: the sparse model, the registered
+// views sorted by name, their pinhole render cameras (undistorted when the
+// COLMAP camera has distortion, scaled by `downscale`), on-demand image
+// loading with a bounded LRU cache, the held-out split and the SfM points.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gaussian/camera.h"
+#include "gaussian/image.h"
+#include "plugin/reconstruction.h"
+
+namespace watergs {
+
+struct WorkspaceOptions {
+  std::string workspace_path;  // COLMAP workspace: holds images/ and sparse/0
+                               // (or sparse/)
+  std::string input_path;  // sparse model folder; default <workspace>/sparse/0,
+                           // else <workspace>/sparse
+  std::string image_path;  // image folder; default <workspace>/images
+  int downscale = 1;  // 1, 2, 4, 8: use <workspace>/images_<k> if it exists,
+                      // else resize on load
+  bool use_colmap_undistorter =
+      false;  // distorted cameras: `colmap image_undistorter` instead of OpenCV
+  size_t image_cache_bytes = size_t(1) << 30;  // bounded decoded-image cache
+  // Where `colmap image_undistorter` writes (reused if it already holds a
+  // model); default <workspace>/undistorted_watergs.
+  std::string undistorted_path;
+};
+
+class ImageLoader;
+
+class Workspace {
+ public:
+  // Reads the model (bin or txt), checks images exist and sizes match cameras;
+  // throws Error.
+  static Workspace Open(const WorkspaceOptions& options);
+  Workspace(Workspace&&) noexcept;
+  Workspace& operator=(Workspace&&) noexcept;
+  ~Workspace();
+
+  const Reconstruction& reconstruction() const { return reconstruction_; }
+  // Registered images sorted by name; "view i" means the i-th of these.
+  size_t NumViews() const { return views_.size(); }
+  const std::string& ViewName(size_t view) const;
+  // The COLMAP image of view i.
+  const Image& ViewImage(size_t view) const;
+  // Pinhole camera for rendering view i (undistorted intrinsics if the camera
+  // had distortion; scaled by downscale).
+  RenderCamera ViewCamera(size_t view) const;
+  // The (undistorted, downscaled) image, float RGB in [0,1]; cached (LRU,
+  // bounded).
+  ImageRGB LoadView(size_t view) const;
+  // LLFF/Mip-NeRF 360 convention: with eval, every 8th view (i % 8 == 0) is
+  // held out.
+  std::vector<size_t> TrainViews(bool eval) const;
+  std::vector<size_t> TestViews(bool eval) const;
+  // SfM points: xyz (N x 3) and rgb in [0,1] (N x 3), for initialisation.
+  void PointCloud(std::vector<float>* xyz, std::vector<float>* rgb) const;
+  // Inria's cameras_extent: 1.1 * max distance of camera centres from their
+  // mean.
+  double SceneExtent() const;
+
+  // The options with every default path filled in.
+  const WorkspaceOptions& options() const { return options_; }
+  // Folder the model was read from.
+  const std::string& model_path() const { return model_path_; }
+  // Whether any camera had distortion (and is rendered through an
+  // undistorted pinhole camera).
+  bool undistorted() const { return undistorted_; }
+
+ private:
+  Workspace() = default;
+
+  WorkspaceOptions options_;
+  std::string model_path_;
+  Reconstruction reconstruction_;
+  // Registered image ids sorted by image name.
+  std::vector<image_t> views_;
+  // Render cameras per view, computed at Open.
+  std::vector<RenderCamera> view_cameras_;
+  bool undistorted_ = false;
+  std::unique_ptr<ImageLoader> loader_;
+};
+
+}  // namespace watergs

@@ -1,0 +1,134 @@
+// Against the real COLMAP 3.8 binary (`colmap` on PATH, installed by
+// scripts/install_deps.sh): on synthetic models it has never seen (every
+// camera model, one and several cameras, .bin and .txt), `watergs
+// model_info` prints the figures `colmap model_analyzer` prints, and
+// `watergs model_converter` writes the bytes `colmap model_converter` writes.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <sstream>
+
+#include "gaussian/file_util.h"
+#include "plugin/reconstruction_io.h"
+#include "tests/plugin/synthetic_model.h"
+
+namespace watergs {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Colmap() { return "QT_QPA_PLATFORM=offscreen colmap"; }
+
+std::string FileText(const std::string& path) {
+  const std::vector<uint8_t> bytes = ReadFileBytes(path);
+  return std::string(bytes.begin(), bytes.end());
+}
+
+// The model_analyzer lines ("Cameras: 3", ..., "Mean reprojection error:
+// 0.5px") found in a command's output, in order.
+std::string SummaryLines(const std::string& output) {
+  static const char* kLabels[] = {"Cameras:",
+                                  "Images:",
+                                  "Registered images:",
+                                  "Points:",
+                                  "Observations:",
+                                  "Mean track length:",
+                                  "Mean observations per image:",
+                                  "Mean reprojection error:"};
+  std::istringstream in(output);
+  std::string line, lines;
+  while (std::getline(in, line)) {
+    for (const char* label : kLabels) {
+      if (line.rfind(label, 0) == 0) lines += line + "\n";
+    }
+  }
+  return lines;
+}
+
+class ColmapCompat : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const testing::CommandResult help = testing::RunCommand(Colmap() + " -h");
+    ASSERT_NE(help.output.find("COLMAP 3.8"), std::string::npos)
+        << "colmap 3.8 must be on PATH (scripts/install_deps.sh): "
+        << help.output;
+  }
+
+  // Writes the model in `format`, then checks model_info against
+  // model_analyzer and both converters' BIN and TXT outputs byte for byte.
+  void Check(const testing::SyntheticModelOptions& options,
+             ModelFormat format) {
+    const std::string label =
+        "model ids " + std::to_string(options.model_ids.size()) + " first " +
+        std::to_string(options.model_ids[0]) +
+        (format == ModelFormat::kBinary ? " BIN" : " TXT");
+    const std::string input = dir_ / "input";
+    fs::remove_all(dir_.path());
+    WriteReconstruction(testing::MakeSyntheticReconstruction(options), input,
+                        format);
+    const testing::CommandResult ours = testing::RunCommand(
+        testing::WatergsBin() + " model_info --input_path " + input);
+    const testing::CommandResult theirs =
+        testing::RunCommand(Colmap() + " model_analyzer --path " + input);
+    ASSERT_EQ(ours.exit_code, 0) << label << ours.output;
+    ASSERT_EQ(theirs.exit_code, 0) << label << theirs.output;
+    const std::string summary = SummaryLines(theirs.output);
+    EXPECT_NE(summary.find("Mean reprojection error:"), std::string::npos)
+        << theirs.output;
+    EXPECT_EQ(SummaryLines(ours.output), summary) << label;
+    for (const char* type : {"BIN", "TXT"}) {
+      const std::string ext =
+          std::string(".") + (type[0] == 'B' ? "bin" : "txt");
+      const std::string colmap_out = dir_ / ("colmap_" + ext.substr(1));
+      const std::string our_out = dir_ / ("ours_" + ext.substr(1));
+      fs::create_directories(colmap_out);
+      const testing::CommandResult converted = testing::RunCommand(
+          Colmap() + " model_converter --input_path " + input +
+          " --output_path " + colmap_out + " --output_type " + type);
+      ASSERT_EQ(converted.exit_code, 0) << converted.output;
+      const testing::CommandResult ours_converted = testing::RunCommand(
+          testing::WatergsBin() + " model_converter --input_path " + input +
+          " --output_path " + our_out + " --output_type " + type);
+      ASSERT_EQ(ours_converted.exit_code, 0) << ours_converted.output;
+      for (const char* name : {"cameras", "images", "points3D"}) {
+        const std::string file = name + ext;
+        EXPECT_EQ(FileText(our_out + "/" + file),
+                  FileText(colmap_out + "/" + file))
+            << label << " " << file;
+      }
+    }
+  }
+
+  testing::TempDir dir_{"colmap_compat"};
+};
+
+TEST_F(ColmapCompat, EveryCameraModelAloneBinAndTxt) {
+  for (int model_id = 0; model_id < 11; ++model_id) {
+    testing::SyntheticModelOptions options;
+    options.model_ids = {model_id};
+    options.num_images = 5;
+    options.num_points = 60;
+    options.seed = 10 + model_id;
+    Check(options, model_id % 2 ? ModelFormat::kText : ModelFormat::kBinary);
+  }
+}
+
+TEST_F(ColmapCompat, SeveralCamerasAllModels) {
+  testing::SyntheticModelOptions options;
+  options.model_ids = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10};
+  options.num_images = 30;
+  options.num_points = 2000;
+  Check(options, ModelFormat::kBinary);
+  options.seed = 2;
+  Check(options, ModelFormat::kText);
+}
+
+TEST_F(ColmapCompat, ModelWithoutPoints) {
+  testing::SyntheticModelOptions options;
+  options.model_ids = {2, 4};
+  options.num_points = 0;
+  Check(options, ModelFormat::kBinary);
+}
+
+}  // namespace
+}  // namespace watergs
