@@ -14,6 +14,8 @@ namespace {
 constexpr int kRadius = kSsimWindow / 2;
 constexpr double kC1 = 0.01 * 0.01;
 constexpr double kC2 = 0.03 * 0.03;
+// Images with fewer values than this are filtered on one thread.
+constexpr size_t kParallelMinValues = size_t(1) << 15;
 
 // The 1-D window; its outer product is Inria's normalised 2-D window.
 template <typename T>
@@ -82,7 +84,9 @@ void BlurPlanes(int count, int height, int len, int stride, Fill fill,
                 T* horizontal, T* out, const std::array<T, kSsimWindow>& g) {
   const size_t plane = static_cast<size_t>(height) * len;
   const int pad = kRadius * stride;
-#pragma omp parallel
+  // Small images are not worth waking threads for.
+  const bool parallel = plane >= kParallelMinValues;
+#pragma omp parallel if (parallel)
   {
     std::vector<T> padded(static_cast<size_t>(count) * (len + 2 * pad), T(0));
 #pragma omp for schedule(static)
@@ -147,7 +151,7 @@ double SsimInterleaved(const T* x, const T* y, int width, int height,
   const T* exx = my + plane;
   const T* eyy = exx + plane;
   const T* exy = eyy + plane;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (plane >= kParallelMinValues)
   for (int row = 0; row < height; ++row) {
     double row_sum = 0;
     for (size_t i = static_cast<size_t>(row) * len,
@@ -187,7 +191,7 @@ double SsimInterleaved(const T* x, const T* y, int width, int height,
   const T* b_mu = s.moments.data();
   const T* b_xx = b_mu + plane;
   const T* b_xy = b_xx + plane;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (plane >= kParallelMinValues)
   for (int row = 0; row < height; ++row) {
     for (size_t i = static_cast<size_t>(row) * len,
                 end = static_cast<size_t>(row + 1) * len;

@@ -132,7 +132,7 @@ void Trainer::ComputeRadii(const RenderCamera& camera) {
   const ProjectionCamera cam = MakeProjectionCamera(camera);
   const int64_t n = static_cast<int64_t>(model_.size());
   radii_.assign(n, 0.f);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > 20000)
   for (int64_t i = 0; i < n; ++i) {
     if (!grads_.visible[i]) continue;
     ProjectedGaussian p;
