@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "gaussian/error.h"
 
@@ -18,6 +19,7 @@ constexpr float kMaxGradMagnitude = 1e18f;
 
 template <typename V>
 void FilterRows(V& v, const std::vector<bool>& keep, size_t stride) {
+  if (v.empty()) return;  // the storage the other moment layout uses
   size_t out = 0;
   for (size_t i = 0; i < keep.size(); ++i) {
     if (!keep[i]) continue;
@@ -29,7 +31,42 @@ void FilterRows(V& v, const std::vector<bool>& keep, size_t stride) {
   v.resize(out * stride);
 }
 
+// Decoded values of every 8-bit moment code.
+struct MomentCodeTable {
+  float value[256];
+  MomentCodeTable() {
+    for (int c = 0; c < 256; ++c) {
+      const int magnitude = c & 127;
+      const int exponent = (magnitude >> 3) - 8;
+      const float mantissa = 1.f + (magnitude & 7) / 8.f;
+      const float v = magnitude == 0 ? 0.f : std::ldexp(mantissa, exponent);
+      value[c] = (c & 128) ? -v : v;
+    }
+  }
+};
+
+const MomentCodeTable& CodeTable() {
+  static const MomentCodeTable table;
+  return table;
+}
+
 }  // namespace
+
+uint8_t EncodeMomentCode(float x) {
+  if (!std::isfinite(x)) return 0;
+  const uint8_t sign = x < 0 ? 128 : 0;
+  uint32_t bits;
+  const float a = std::fabs(x);
+  std::memcpy(&bits, &a, sizeof(bits));
+  bits += 1u << 19;  // round the 20 dropped mantissa bits to nearest
+  const int exponent = static_cast<int>(bits >> 23) - 127;
+  if (exponent < -8) return 0;
+  if (exponent > 7) return sign | 127;
+  const int magnitude = ((exponent + 8) << 3) | ((bits >> 20) & 7);
+  return magnitude == 0 ? 0 : static_cast<uint8_t>(sign | magnitude);
+}
+
+float DecodeMomentCode(uint8_t code) { return CodeTable().value[code]; }
 
 double ExponentialLr(int64_t step, double lr_init, double lr_final,
                      int64_t delay_steps, double delay_mult,
@@ -136,9 +173,15 @@ void Adam::Init(const GaussianModel& model) {
     const int g = Index(group);
     strides_[g] = GroupStride(model, group);
     const size_t n = num_gaussians_ * strides_[g];
-    groups_[g].exp_avg.assign(n, 0.f);
-    groups_[g].exp_avg_sq.assign(n, 0.f);
-    groups_[g].step = 0;
+    AdamGroupState& s = groups_[g];
+    s = AdamGroupState{};
+    if (options_.compact_moments) {
+      s.exp_avg_q.assign(n, 0);
+      s.exp_avg_sq_shared.assign(num_gaussians_, 0.f);
+    } else {
+      s.exp_avg.assign(n, 0.f);
+      s.exp_avg_sq.assign(n, 0.f);
+    }
     masks_[g].clear();
   }
   rejected_total_ = 0;
@@ -192,12 +235,14 @@ size_t Adam::Step(const GaussianGradients& grads, GaussianModel* model) {
     std::vector<float>& params = GroupParams(*model, group);
     const std::vector<float>& grad = GroupGrads(grads, group);
     if (grad.size() != params.size() ||
-        params.size() != groups_[g].exp_avg.size()) {
+        params.size() != num_gaussians_ * strides_[g]) {
       Fail(std::string("Adam: gradient of ") + GroupName(group) + " has " +
            std::to_string(grad.size()) + " values, expected " +
            std::to_string(params.size()));
     }
-    rejected += StepGroup(group, grad, strides_[g], &params);
+    rejected += options_.compact_moments
+                    ? StepGroupCompact(group, grad, strides_[g], &params)
+                    : StepGroup(group, grad, strides_[g], &params);
   }
   rejected_total_ += static_cast<int64_t>(rejected);
   return rejected;
@@ -252,6 +297,69 @@ size_t Adam::StepGroup(ParamGroup group, const std::vector<float>& grad,
   return rejected;
 }
 
+size_t Adam::StepGroupCompact(ParamGroup group, const std::vector<float>& grad,
+                              int stride, std::vector<float>* params) {
+  AdamGroupState& s = groups_[Index(group)];
+  ++s.step;
+  const double bias1 = 1.0 - std::pow(options_.beta1, double(s.step));
+  const double bias2 = 1.0 - std::pow(options_.beta2, double(s.step));
+  const float step_size = static_cast<float>(lr_[Index(group)] / bias1);
+  const float bias2_sqrt = static_cast<float>(std::sqrt(bias2));
+  const float w1 = static_cast<float>(1.0 - options_.beta1);
+  const float beta2 = static_cast<float>(options_.beta2);
+  const float w2 = static_cast<float>(1.0 - options_.beta2);
+  const float eps = static_cast<float>(options_.eps);
+  const std::vector<uint8_t>& mask = masks_[Index(group)];
+  const bool use_mask = !mask.empty();
+  float* p = params->data();
+  uint8_t* q = s.exp_avg_q.data();
+  float* v = s.exp_avg_sq_shared.data();
+  const float* gr = grad.data();
+  const float* table = CodeTable().value;
+  const int64_t n = static_cast<int64_t>(num_gaussians_);
+  size_t rejected = 0;
+#pragma omp parallel for schedule(static) reduction(+ : rejected) \
+    if (n * stride > 32768)
+  for (int64_t i = 0; i < n; ++i) {
+    if (use_mask && !mask[i]) continue;
+    float g[64], m[64];
+    const size_t base = static_cast<size_t>(i) * stride;
+    float mean_sq = 0.f;
+    size_t bad = 0;
+    for (int k = 0; k < stride; ++k) {
+      float x = gr[base + k];
+      if (!std::isfinite(x)) {
+        x = 0.f;
+        ++bad;
+      }
+      g[k] = std::clamp(x, -kMaxGradMagnitude, kMaxGradMagnitude);
+      mean_sq += g[k] * g[k] / static_cast<float>(stride);
+    }
+    const float old_rms = std::sqrt(v[i]);
+    const float new_v = v[i] * beta2 + w2 * mean_sq;
+    const float new_rms = std::sqrt(new_v);
+    const float denom = new_rms / bias2_sqrt + eps;
+    bool finite = std::isfinite(new_v);
+    for (int k = 0; k < stride; ++k) {
+      const float old_m = table[q[base + k]] * old_rms;
+      m[k] = old_m + w1 * (g[k] - old_m);
+      finite = finite && std::isfinite(p[base + k] - step_size * m[k] / denom);
+    }
+    rejected += bad;
+    if (!finite) {
+      ++rejected;
+      continue;
+    }
+    const float inv_rms = new_rms > 0 ? 1.f / new_rms : 0.f;
+    for (int k = 0; k < stride; ++k) {
+      p[base + k] -= step_size * (m[k] / denom);
+      q[base + k] = EncodeMomentCode(m[k] * inv_rms);
+    }
+    v[i] = new_v;
+  }
+  return rejected;
+}
+
 void Adam::Filter(const std::vector<bool>& keep) {
   if (keep.size() != num_gaussians_) {
     Fail("Adam::Filter: keep has " + std::to_string(keep.size()) +
@@ -260,6 +368,8 @@ void Adam::Filter(const std::vector<bool>& keep) {
   for (int g = 0; g < kNumParamGroups; ++g) {
     FilterRows(groups_[g].exp_avg, keep, strides_[g]);
     FilterRows(groups_[g].exp_avg_sq, keep, strides_[g]);
+    FilterRows(groups_[g].exp_avg_q, keep, strides_[g]);
+    FilterRows(groups_[g].exp_avg_sq_shared, keep, 1);
     if (!masks_[g].empty()) FilterRows(masks_[g], keep, 1);
   }
   num_gaussians_ =
@@ -269,8 +379,14 @@ void Adam::Filter(const std::vector<bool>& keep) {
 void Adam::Append(size_t count) {
   num_gaussians_ += count;
   for (int g = 0; g < kNumParamGroups; ++g) {
-    groups_[g].exp_avg.resize(num_gaussians_ * strides_[g], 0.f);
-    groups_[g].exp_avg_sq.resize(num_gaussians_ * strides_[g], 0.f);
+    AdamGroupState& s = groups_[g];
+    if (options_.compact_moments) {
+      s.exp_avg_q.resize(num_gaussians_ * strides_[g], 0);
+      s.exp_avg_sq_shared.resize(num_gaussians_, 0.f);
+    } else {
+      s.exp_avg.resize(num_gaussians_ * strides_[g], 0.f);
+      s.exp_avg_sq.resize(num_gaussians_ * strides_[g], 0.f);
+    }
     if (!masks_[g].empty()) masks_[g].resize(num_gaussians_, 1);
   }
 }
@@ -279,12 +395,16 @@ void Adam::ResetMoments(ParamGroup group) {
   AdamGroupState& s = groups_[Index(group)];
   std::fill(s.exp_avg.begin(), s.exp_avg.end(), 0.f);
   std::fill(s.exp_avg_sq.begin(), s.exp_avg_sq.end(), 0.f);
+  std::fill(s.exp_avg_q.begin(), s.exp_avg_q.end(), 0);
+  std::fill(s.exp_avg_sq_shared.begin(), s.exp_avg_sq_shared.end(), 0.f);
 }
 
 size_t Adam::BytesPerGaussian() const {
   size_t bytes = 0;
   for (int g = 0; g < kNumParamGroups; ++g) {
-    bytes += 2 * sizeof(float) * strides_[g];
+    bytes += options_.compact_moments
+                 ? strides_[g] * sizeof(uint8_t) + sizeof(float)
+                 : 2 * sizeof(float) * strides_[g];
     if (!masks_[g].empty()) bytes += 1;
   }
   return bytes;

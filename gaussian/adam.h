@@ -43,15 +43,31 @@ struct AdamOptions {
   double beta1 = 0.9;
   double beta2 = 0.999;
   double eps = 1e-15;
+  // Compact moments (83 instead of 472 bytes per Gaussian at SH degree 3):
+  // one second moment per Gaussian and group (the mean of g^2 over the
+  // group's values, as Adam-mini does per block) and the first moment per
+  // value as an 8-bit float relative to its square root. Not Inria's exact
+  // optimiser; off by default.
+  bool compact_moments = false;
 };
 
-// Moments of one group: N x stride floats each, and the update count used
-// for bias correction (shared by the group, as in torch).
+// Moments of one group and the update count used for bias correction
+// (shared by the group, as in torch). Full moments: exp_avg and exp_avg_sq,
+// N x stride floats each. Compact moments: exp_avg_q (N x stride 8-bit
+// codes of exp_avg / sqrt(exp_avg_sq_shared)) and exp_avg_sq_shared (N).
 struct AdamGroupState {
   std::vector<float> exp_avg;
   std::vector<float> exp_avg_sq;
+  std::vector<uint8_t> exp_avg_q;
+  std::vector<float> exp_avg_sq_shared;
   int64_t step = 0;
 };
+
+// The 8-bit float of compact moments: sign, 4-bit exponent (2^-8 .. 2^7),
+// 3-bit mantissa, round to nearest (relative error <= 1/16), saturating;
+// magnitudes below ~2^-8 become 0 (code 0).
+uint8_t EncodeMomentCode(float x);
+float DecodeMomentCode(uint8_t code);
 
 // The model array and the gradient array of a group, and its floats per
 // Gaussian.
@@ -110,6 +126,8 @@ class Adam {
   static int Index(ParamGroup group) { return static_cast<int>(group); }
   size_t StepGroup(ParamGroup group, const std::vector<float>& grad, int stride,
                    std::vector<float>* params);
+  size_t StepGroupCompact(ParamGroup group, const std::vector<float>& grad,
+                          int stride, std::vector<float>* params);
 
   AdamOptions options_;
   double scene_extent_;

@@ -136,6 +136,8 @@ void WriteCheckpoint(const std::string& path, const TrainingCheckpoint& c) {
   for (const AdamGroupState& g : c.adam) {
     w.Vector(g.exp_avg);
     w.Vector(g.exp_avg_sq);
+    w.Vector(g.exp_avg_q);
+    w.Vector(g.exp_avg_sq_shared);
     w.Pod<int64_t>(g.step);
   }
   w.Pod<int64_t>(c.adam_rejected);
@@ -177,6 +179,8 @@ TrainingCheckpoint ReadCheckpoint(const std::string& path) {
   for (AdamGroupState& g : c.adam) {
     r.Vector(&g.exp_avg);
     r.Vector(&g.exp_avg_sq);
+    r.Vector(&g.exp_avg_q);
+    r.Vector(&g.exp_avg_sq_shared);
     g.step = r.Pod<int64_t>();
   }
   c.adam_rejected = r.Pod<int64_t>();

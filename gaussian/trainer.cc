@@ -112,6 +112,7 @@ std::string Trainer::RunSignature() const {
   j["train_views"] = train_views_.size();
   j["lambda_dssim"] = options_.lambda_dssim;
   j["position_lr_max_steps"] = options_.adam.position_lr_max_steps;
+  j["compact_moments"] = options_.adam.compact_moments;
   return j.dump();
 }
 
@@ -327,7 +328,9 @@ void Trainer::Resume(const std::string& checkpoint_path) {
   for (int g = 0; g < kNumParamGroups; ++g) {
     AdamGroupState& s = adam_.state(static_cast<ParamGroup>(g));
     if (c.adam[g].exp_avg.size() != s.exp_avg.size() ||
-        c.adam[g].exp_avg_sq.size() != s.exp_avg_sq.size()) {
+        c.adam[g].exp_avg_sq.size() != s.exp_avg_sq.size() ||
+        c.adam[g].exp_avg_q.size() != s.exp_avg_q.size() ||
+        c.adam[g].exp_avg_sq_shared.size() != s.exp_avg_sq_shared.size()) {
       FailAt(checkpoint_path,
              "checkpoint optimiser state does not match "
              "its model");

@@ -208,3 +208,126 @@ TEST(Adam, MismatchedGradientsAreAnError) {
 
 }  // namespace
 }  // namespace watergs
+
+namespace watergs {
+namespace {
+
+TEST(CompactAdam, MomentCodeRoundTripsWithinOneSixteenth) {
+  for (float x = std::ldexp(1.07f, -8); x < 240.f; x *= 1.013f) {
+    for (float s : {1.f, -1.f}) {
+      const float back = DecodeMomentCode(EncodeMomentCode(s * x));
+      EXPECT_LE(std::abs(back - s * x), x / 16 + 1e-12f) << x;
+      EXPECT_EQ(back < 0, s < 0);
+    }
+  }
+  EXPECT_EQ(DecodeMomentCode(EncodeMomentCode(0.f)), 0.f);
+  EXPECT_EQ(DecodeMomentCode(EncodeMomentCode(1e-4f)), 0.f);
+  EXPECT_EQ(DecodeMomentCode(EncodeMomentCode(1e9f)), 240.f);
+  EXPECT_EQ(DecodeMomentCode(EncodeMomentCode(std::nanf(""))), 0.f);
+  // A momentum that only decays (beta1 = 0.9, zero gradients) reaches 0.
+  float m = 3.f;
+  for (int t = 0; t < 200; ++t)
+    m = DecodeMomentCode(EncodeMomentCode(0.9f * m));
+  EXPECT_EQ(m, 0.f);
+}
+
+TEST(CompactAdam, FirstStepNormalisesByTheGroupRms) {
+  GaussianModel model = RandomModel(6, 1, 11);
+  const GaussianModel start = model;
+  AdamOptions options;
+  options.compact_moments = true;
+  Adam adam(options, 1.0);
+  adam.Init(model);
+  EXPECT_EQ(adam.BytesPerGaussian(), size_t(3 + 3 + 9 + 1 + 3 + 4) + 6 * 4);
+  adam.SetIteration(1);
+  const GaussianGradients grads = RandomGrads(model, 12);
+  adam.Step(grads, &model);
+  // m_hat / sqrt(v_hat) = g / rms(g over the Gaussian's group values).
+  const double lr = adam.LearningRate(ParamGroup::kFRest);
+  for (size_t i = 0; i < 6; ++i) {
+    double mean_sq = 0;
+    for (int k = 0; k < 9; ++k)
+      mean_sq += std::pow(grads.sh_rest[9 * i + k], 2) / 9;
+    for (int k = 0; k < 9; ++k) {
+      const size_t j = 9 * i + k;
+      EXPECT_NEAR(model.sh_rest[j] - start.sh_rest[j],
+                  -lr * grads.sh_rest[j] / std::sqrt(mean_sq), 1e-3 * lr);
+    }
+  }
+}
+
+TEST(CompactAdam, ConvergesLikeFullAdamOnAQuadratic) {
+  // Minimise sum_j a_j (p_j - c_j)^2 over every group with both variants.
+  auto run = [](bool compact) {
+    GaussianModel model = RandomModel(20, 2, 13);
+    GaussianModel target = RandomModel(20, 2, 14);
+    AdamOptions options;
+    options.compact_moments = compact;
+    options.position_lr_init = options.position_lr_final = 0.02;
+    options.feature_lr = options.feature_rest_lr = options.opacity_lr = 0.02;
+    options.scaling_lr = options.rotation_lr = 0.02;
+    Adam adam(options, 1.0);
+    adam.Init(model);
+    GaussianGradients grads;
+    double loss = 0, initial = 0;
+    for (int t = 1; t <= 1500; ++t) {
+      adam.SetIteration(t);
+      grads.Reset(model.size(), model.sh_rest_stride());
+      loss = 0;
+      for (ParamGroup g : {ParamGroup::kXyz, ParamGroup::kFDc,
+                           ParamGroup::kFRest, ParamGroup::kOpacity,
+                           ParamGroup::kScaling, ParamGroup::kRotation}) {
+        auto& p = GroupParams(model, g);
+        const auto& c = GroupParams(target, g);
+        auto& d = const_cast<std::vector<float>&>(GroupGrads(grads, g));
+        for (size_t j = 0; j < p.size(); ++j) {
+          const double a = 1 + j % 5;
+          loss += a * (p[j] - c[j]) * (p[j] - c[j]);
+          d[j] = float(2 * a * (p[j] - c[j]));
+        }
+      }
+      if (t == 1) initial = loss;
+      adam.Step(grads, &model);
+    }
+    return std::pair{initial, loss};
+  };
+  const auto [initial, full] = run(false);
+  const auto [initial_compact, compact] = run(true);
+  EXPECT_EQ(initial, initial_compact);
+  EXPECT_LT(full, 1e-3 * initial);
+  EXPECT_LT(compact, 1e-3 * initial);
+  EXPECT_LT(compact, 3 * full + 1e-4 * initial);
+}
+
+TEST(CompactAdam, MomentsFollowFilterAppendAndMasks) {
+  GaussianModel model = RandomModel(5, 1, 15);
+  AdamOptions options;
+  options.compact_moments = true;
+  Adam adam(options, 1.0);
+  adam.Init(model);
+  std::vector<uint8_t> mask = {1, 0, 1, 1, 1};
+  adam.SetGaussianMask(ParamGroup::kFDc, mask);
+  const GaussianModel before = model;
+  adam.Step(RandomGrads(model, 16), &model);
+  for (int k = 0; k < 3; ++k)
+    EXPECT_EQ(model.sh_dc[3 + k], before.sh_dc[3 + k]);
+  EXPECT_EQ(adam.state(ParamGroup::kFDc).exp_avg_sq_shared[1], 0.f);
+  const auto q = adam.state(ParamGroup::kFRest).exp_avg_q;
+  const auto v = adam.state(ParamGroup::kFRest).exp_avg_sq_shared;
+  adam.Filter({false, true, true, false, true});
+  adam.Append(1);
+  const auto& q2 = adam.state(ParamGroup::kFRest).exp_avg_q;
+  const auto& v2 = adam.state(ParamGroup::kFRest).exp_avg_sq_shared;
+  ASSERT_EQ(q2.size(), 4u * 9);
+  ASSERT_EQ(v2.size(), 4u);
+  EXPECT_EQ(v2[0], v[1]);
+  EXPECT_EQ(v2[2], v[4]);
+  EXPECT_EQ(v2[3], 0.f);
+  for (int k = 0; k < 9; ++k) {
+    EXPECT_EQ(q2[9 + k], q[18 + k]);
+    EXPECT_EQ(q2[27 + k], 0);
+  }
+}
+
+}  // namespace
+}  // namespace watergs

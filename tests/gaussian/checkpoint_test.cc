@@ -37,6 +37,8 @@ TrainingCheckpoint MakeCheckpoint() {
     c.adam[g].exp_avg.assign(5 * (g + 1), 0.5f * g);
     c.adam[g].exp_avg_sq.assign(5 * (g + 1), 0.25f * g);
     c.adam[g].step = 100 + g;
+    c.adam[g].exp_avg_q.assign(3 * g, uint8_t(17 * g));
+    c.adam[g].exp_avg_sq_shared.assign(g, 0.125f * g);
   }
   c.adam_rejected = 3;
   c.density_state = std::string("\0density\xff", 9);
@@ -80,6 +82,8 @@ TEST(Checkpoint, RoundTripIsExact) {
     EXPECT_EQ(r.adam[g].exp_avg, c.adam[g].exp_avg);
     EXPECT_EQ(r.adam[g].exp_avg_sq, c.adam[g].exp_avg_sq);
     EXPECT_EQ(r.adam[g].step, c.adam[g].step);
+    EXPECT_EQ(r.adam[g].exp_avg_q, c.adam[g].exp_avg_q);
+    EXPECT_EQ(r.adam[g].exp_avg_sq_shared, c.adam[g].exp_avg_sq_shared);
   }
   EXPECT_EQ(r.adam_rejected, 3);
   EXPECT_EQ(r.density_state, c.density_state);
