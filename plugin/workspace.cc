@@ -176,6 +176,7 @@ Workspace Workspace::Open(const WorkspaceOptions& options) {
   for (const auto& [id, camera] : workspace.reconstruction_.Cameras()) {
     any_distorted |= camera.HasDistortion();
   }
+  workspace.undistorted_ = any_distorted;
   if (any_distorted && opts.use_colmap_undistorter) {
     workspace.model_path_ = RunColmapUndistorter(opts, workspace.model_path_);
     opts.image_path = (fs::path(opts.undistorted_path) / "images").string();
@@ -193,7 +194,6 @@ Workspace Workspace::Open(const WorkspaceOptions& options) {
   for (size_t view = 0; view < workspace.views_.size(); ++view) {
     const Image& image = workspace.ViewImage(view);
     const Camera& camera = model.GetCamera(image.camera_id);
-    workspace.undistorted_ |= camera.HasDistortion();
     const std::string path = (fs::path(opts.image_path) / image.name).string();
     if (!fs::is_regular_file(path)) {
       FailAt(path, "missing (image " + std::to_string(image.image_id) +
