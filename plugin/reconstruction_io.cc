@@ -373,9 +373,8 @@ void ReadImagesText(const std::string& path, Reconstruction* out) {
   TextReader reader(path);
   while (reader.NextDataLine()) {
     const auto& tokens = reader.tokens();
-    if (tokens.size() != 10) {
-      reader.Fail(
-          "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME (10 fields)");
+    if (tokens.size() < 10) {
+      reader.Fail("expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
     }
     Image image;
     image.image_id = reader.ParseUint(tokens[0], "image id", kMaxU32);
@@ -386,7 +385,10 @@ void ReadImagesText(const std::string& path, Reconstruction* out) {
       image.tvec(k) = reader.ParseDouble(tokens[5 + k], "tvec");
     }
     image.camera_id = reader.ParseUint(tokens[8], "camera id", kMaxU32);
-    image.name = std::string(tokens[9]);
+    // Names may hold spaces: everything from the 10th field on.
+    image.name = std::string(
+        tokens[9].data(),
+        tokens.back().data() + tokens.back().size() - tokens[9].data());
     if (!reader.NextLine()) {
       reader.Fail("image " + std::to_string(image.image_id) +
                   " lacks its POINTS2D line (truncated file)");

@@ -16,16 +16,19 @@
 namespace watergs {
 
 struct WorkspaceOptions {
-  std::string workspace_path;  // COLMAP workspace: holds images/ and sparse/0
-                               // (or sparse/)
-  std::string input_path;  // sparse model folder; default <workspace>/sparse/0,
-                           // else <workspace>/sparse
-  std::string image_path;  // image folder; default <workspace>/images
-  int downscale = 1;  // 1, 2, 4, 8: use <workspace>/images_<k> if it exists,
-                      // else resize on load
-  bool use_colmap_undistorter =
-      false;  // distorted cameras: `colmap image_undistorter` instead of OpenCV
-  size_t image_cache_bytes = size_t(1) << 30;  // bounded decoded-image cache
+  // COLMAP workspace: holds images/ and sparse/0 (or sparse/).
+  std::string workspace_path;
+  // Sparse model folder; default <workspace>/sparse/0, else <workspace>/sparse.
+  std::string input_path;
+  // Image folder; default <workspace>/images.
+  std::string image_path;
+  // 1, 2, 4, 8: use <image_path>_<k> (e.g. <workspace>/images_4) if it
+  // exists, else resize on load (INTER_AREA).
+  int downscale = 1;
+  // Distorted cameras: `colmap image_undistorter` instead of OpenCV.
+  bool use_colmap_undistorter = false;
+  // Bounded decoded-image cache.
+  size_t image_cache_bytes = size_t(1) << 30;
   // Where `colmap image_undistorter` writes (reused if it already holds a
   // model); default <workspace>/undistorted_watergs.
   std::string undistorted_path;

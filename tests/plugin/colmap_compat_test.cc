@@ -10,6 +10,7 @@
 
 #include "gaussian/file_util.h"
 #include "plugin/reconstruction_io.h"
+#include "plugin/workspace.h"
 #include "tests/plugin/synthetic_model.h"
 
 namespace watergs {
@@ -128,6 +129,51 @@ TEST_F(ColmapCompat, ModelWithoutPoints) {
   options.model_ids = {2, 4};
   options.num_points = 0;
   Check(options, ModelFormat::kBinary);
+}
+
+TEST_F(ColmapCompat, ModelInfoStepsIntoWorkspaceSparse0) {
+  testing::SyntheticModelOptions options;
+  options.model_ids = {8, 3};
+  WriteReconstruction(testing::MakeSyntheticReconstruction(options),
+                      dir_ / "ws/sparse/0", ModelFormat::kText);
+  const testing::CommandResult ours = testing::RunCommand(
+      testing::WatergsBin() + " model_info --input_path " + dir_ / "ws");
+  const testing::CommandResult theirs = testing::RunCommand(
+      Colmap() + " model_analyzer --path " + dir_ / "ws/sparse/0");
+  ASSERT_EQ(ours.exit_code, 0) << ours.output;
+  EXPECT_NE(SummaryLines(theirs.output), "");
+  EXPECT_EQ(SummaryLines(ours.output), SummaryLines(theirs.output));
+}
+
+// The embedded demo scene (datasets_scripts/demo_scene: images/ + sparse/0,
+// reconstructed by the real COLMAP) opens as a Workspace whose figures match
+// model_analyzer's.
+TEST_F(ColmapCompat, DemoSceneWorkspaceMatchesModelAnalyzer) {
+  const std::string scene =
+      std::string(WATERGS_SOURCE_DIR) + "/datasets_scripts/demo_scene";
+  if (!fs::exists(scene + "/sparse/0")) {
+    GTEST_SKIP() << "demo scene not generated (datasets_scripts/"
+                    "make_demo_scene.sh)";
+  }
+  const testing::CommandResult ours = testing::RunCommand(
+      testing::WatergsBin() + " model_info --input_path " + scene);
+  const testing::CommandResult theirs = testing::RunCommand(
+      Colmap() + " model_analyzer --path " + scene + "/sparse/0");
+  ASSERT_EQ(ours.exit_code, 0) << ours.output;
+  ASSERT_EQ(theirs.exit_code, 0) << theirs.output;
+  EXPECT_EQ(SummaryLines(ours.output), SummaryLines(theirs.output));
+  WorkspaceOptions options;
+  options.workspace_path = scene;
+  const Workspace workspace = Workspace::Open(options);
+  EXPECT_NE(SummaryLines(theirs.output)
+                .find("Registered images: " +
+                      std::to_string(workspace.NumViews()) + "\n"),
+            std::string::npos);
+  const ImageRGB image = workspace.LoadView(workspace.NumViews() - 1);
+  const RenderCamera camera = workspace.ViewCamera(workspace.NumViews() - 1);
+  EXPECT_EQ(image.width, camera.width);
+  EXPECT_EQ(image.height, camera.height);
+  EXPECT_GT(workspace.SceneExtent(), 0);
 }
 
 }  // namespace

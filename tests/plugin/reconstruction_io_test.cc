@@ -184,13 +184,14 @@ TEST(ReconstructionIO, ReadsCommentsBlankLinesAndCrLf) {
   testing::TempDir dir("io_crlf");
   AtomicWriteFile(dir / "cameras.txt", "# c\r\n\r\n7 PINHOLE 10 8 9 9 5 4\r\n");
   AtomicWriteFile(dir / "images.txt",
-                  "# i\n3 1 0 0 0 0 0 1 7 x.png\n\n5 1 0 0 0 0 0 2 7 y.png\n"
+                  "# i\n3 1 0 0 0 0 0 1 7 x.png\n\n5 1 0 0 0 0 0 2 7 my  photo.png\r\n"
                   "1 1 -1 2 2 11\n");
   AtomicWriteFile(dir / "points3D.txt", "11 0 0 3 1 2 3 -1 5 1\n");
   const Reconstruction model = ReadReconstruction(dir.path());
   EXPECT_EQ(model.NumRegImages(), 2u);
   EXPECT_TRUE(model.GetImage(3).points2D.empty());
   EXPECT_EQ(model.GetImage(5).points2D.size(), 2u);
+  EXPECT_EQ(model.GetImage(5).name, "my  photo.png");
   EXPECT_EQ(model.GetPoint3D(11).track[0].image_id, 5u);
   EXPECT_FALSE(model.GetPoint3D(11).HasError());
 }
