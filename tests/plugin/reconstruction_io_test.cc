@@ -183,9 +183,10 @@ TEST(ReconstructionIO, DetectsFormatAndStepsIntoWorkspace) {
 TEST(ReconstructionIO, ReadsCommentsBlankLinesAndCrLf) {
   testing::TempDir dir("io_crlf");
   AtomicWriteFile(dir / "cameras.txt", "# c\r\n\r\n7 PINHOLE 10 8 9 9 5 4\r\n");
-  AtomicWriteFile(dir / "images.txt",
-                  "# i\n3 1 0 0 0 0 0 1 7 x.png\n\n5 1 0 0 0 0 0 2 7 my  photo.png\r\n"
-                  "1 1 -1 2 2 11\n");
+  AtomicWriteFile(
+      dir / "images.txt",
+      "# i\n3 1 0 0 0 0 0 1 7 x.png\n\n5 1 0 0 0 0 0 2 7 my  photo.png\r\n"
+      "1 1 -1 2 2 11\n");
   AtomicWriteFile(dir / "points3D.txt", "11 0 0 3 1 2 3 -1 5 1\n");
   const Reconstruction model = ReadReconstruction(dir.path());
   EXPECT_EQ(model.NumRegImages(), 2u);
