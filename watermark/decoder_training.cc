@@ -264,10 +264,15 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
     running_psnr += a * (psnr - running_psnr);
     running_bce += a * (bce - running_bce);
     running_acc += a * (r.accuracy - running_acc);
-    if (options.target_psnr > 0)
+    if (options.target_psnr > 0) {
+      float target = options.target_psnr;
+      if (step < options.psnr_ramp_steps)
+        target = options.target_psnr_start +
+                 (options.target_psnr - options.target_psnr_start) *
+                     float(step) / float(options.psnr_ramp_steps);
       image_weight = std::clamp(
-          image_weight * (psnr < options.target_psnr ? 1.02f : 1.f / 1.02f),
-          1e-3f, 1e4f);
+          image_weight * (psnr < target ? 1.02f : 1.f / 1.02f), 1e-4f, 1e4f);
+    }
     std::ostringstream status;
     status.setf(std::ios::fixed);
     status.precision(3);

@@ -38,6 +38,11 @@ struct DecoderTrainingOptions {
   // > 0: image_weight is adapted (x1.02 per step when the running PSNR is
   // below, /1.02 above) to hold this encoder PSNR in dB.
   float target_psnr = 0.f;
+  // The PSNR target ramps linearly from target_psnr_start to target_psnr
+  // over the first psnr_ramp_steps steps: a loud watermark first lets the
+  // decoder find the message, which is then made quieter.
+  float target_psnr_start = 24.f;
+  int psnr_ramp_steps = 0;
   // Noise layers sampled uniformly, one per step.
   std::vector<NoiseKind> noise = {NoiseKind::kIdentity};
   bool resume = false;

@@ -50,31 +50,6 @@ void Im2Col(const float* image, int channels, int height, int width, int k,
   }
 }
 
-// Adjoint of Im2Col: image += scatter(col).
-void Col2ImAdd(const float* col, int channels, int height, int width, int k,
-               float* image) {
-  const int pad = k / 2;
-  const size_t hw = size_t(height) * width;
-#pragma omp parallel for schedule(static)
-  for (int ci = 0; ci < channels; ++ci) {
-    float* plane = image + size_t(ci) * hw;
-    for (int ky = 0; ky < k; ++ky) {
-      for (int kx = 0; kx < k; ++kx) {
-        const float* row = col + (size_t(ci * k + ky) * k + kx) * hw;
-        for (int y = 0; y < height; ++y) {
-          const int sy = y + ky - pad;
-          if (sy < 0 || sy >= height) continue;
-          const float* in = row + size_t(y) * width;
-          float* out = plane + size_t(sy) * width;
-          const int x0 = std::max(0, pad - kx);
-          const int x1 = std::min(width, width + pad - kx);
-          for (int x = x0; x < x1; ++x) out[x + kx - pad] += in[x];
-        }
-      }
-    }
-  }
-}
-
 }  // namespace
 
 Parameter::Parameter(std::string name_, std::vector<int> shape_,
@@ -122,6 +97,17 @@ void Conv2d::Backward(const Tensor& x, const Tensor& dy, Tensor* dx,
   ConstMapMatrix w(weight.value.data(), out_, k_rows);
   if (dx) dx->ResizeLike(x);
   if (kernel_ > 1) col_.resize(size_t(k_rows) * hw);
+  if (dx && kernel_ > 1) {
+    // flipped[ci][(co*k + ky)*k + kx] = weight[co][ci][k-1-ky][k-1-kx].
+    const int kk = kernel_ * kernel_;
+    flipped_.resize(size_t(in_) * out_ * kk);
+    dy_col_.resize(size_t(out_) * kk * hw);
+    for (int co = 0; co < out_; ++co)
+      for (int ci = 0; ci < in_; ++ci)
+        for (int t = 0; t < kk; ++t)
+          flipped_[(size_t(ci) * out_ + co) * kk + t] =
+              weight.value[(size_t(co) * in_ + ci) * kk + (kk - 1 - t)];
+  }
   for (int b = 0; b < x.n; ++b) {
     ConstMapMatrix grad_out(dy.Plane(b, 0), out_, hw);
     if (weight_grads) {
@@ -139,9 +125,13 @@ void Conv2d::Backward(const Tensor& x, const Tensor& dy, Tensor* dx,
     if (kernel_ == 1) {
       MapMatrix(dx->Plane(b, 0), in_, hw).noalias() = w.transpose() * grad_out;
     } else {
-      MapMatrix(col_.data(), k_rows, hw).noalias() = w.transpose() * grad_out;
-      std::fill(dx->Plane(b, 0), dx->Plane(b, 0) + size_t(in_) * hw, 0.f);
-      Col2ImAdd(col_.data(), in_, x.h, x.w, kernel_, dx->Plane(b, 0));
+      // Backward-data of a stride-1 'same' convolution is a forward
+      // convolution of dy with the flipped, transposed kernel: one im2col of
+      // dy and one GEMM, as fast as Forward (no col2im scatter).
+      Im2Col(dy.Plane(b, 0), out_, x.h, x.w, kernel_, dy_col_.data());
+      MapMatrix(dx->Plane(b, 0), in_, hw).noalias() =
+          ConstMapMatrix(flipped_.data(), in_, out_ * kernel_ * kernel_) *
+          ConstMapMatrix(dy_col_.data(), out_ * kernel_ * kernel_, hw);
     }
   }
 }

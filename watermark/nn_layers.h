@@ -55,8 +55,9 @@ class Conv2d {
 
  private:
   int in_, out_, kernel_;
-  // im2col workspace: (in * k * k) x (H * W), reused between calls.
-  std::vector<float> col_;
+  // im2col workspaces, reused between calls: of x, (in*k*k) x (H*W); of dy,
+  // (out*k*k) x (H*W); and the flipped kernel [in, out, k, k].
+  std::vector<float> col_, dy_col_, flipped_;
 };
 
 // Batch normalisation over N, H, W per channel, as PyTorch: eps 1e-5,

@@ -16,6 +16,7 @@ int RunTrainDecoder(int argc, char** argv) {
   double learning_rate = options.learning_rate;
   double image_weight = options.image_weight;
   double target_psnr = options.target_psnr;
+  double target_psnr_start = options.target_psnr_start;
   int seed = int(options.seed);
   watergs::OptionParser parser(
       "train_decoder",
@@ -42,6 +43,10 @@ int RunTrainDecoder(int argc, char** argv) {
              "weight of MSE(cover, watermarked) against BCE(message)");
   parser.Add("target_psnr", &target_psnr,
              "if > 0, adapt image_weight to hold this encoder PSNR (dB)");
+  parser.Add("target_psnr_start", &target_psnr_start,
+             "PSNR target at step 0, ramped to --target_psnr");
+  parser.Add("psnr_ramp_steps", &options.psnr_ramp_steps,
+             "steps over which the PSNR target ramps (0: no ramp)");
   parser.Add("noise", &noise,
              "noise layers sampled per step: identity,crop,dropout,resize,"
              "blur,jpeg");
@@ -65,6 +70,7 @@ int RunTrainDecoder(int argc, char** argv) {
   options.learning_rate = float(learning_rate);
   options.image_weight = float(image_weight);
   options.target_psnr = float(target_psnr);
+  options.target_psnr_start = float(target_psnr_start);
   options.seed = uint32_t(seed);
   watergs::TrainDecoder(options);
   std::cout << "wrote " << options.output_path << "\n";
