@@ -12,16 +12,11 @@ namespace {
 
 constexpr int kN = kTileSize;
 
-// Per-pixel state of the backward walk for one tile.
+// Per-pixel state of the backward walk for one tile, one RowF per row.
 struct TileState {
-  alignas(64) float T[kN][kN];
-  alignas(64) float T_final[kN][kN];
-  alignas(64) float dpix[3][kN][kN];
-  alignas(64) float bg_dot[kN][kN];
-  alignas(64) float accum[3][kN][kN];
-  alignas(64) float last_color[3][kN][kN];
-  alignas(64) float last_alpha[kN][kN];
-  alignas(64) int last[kN][kN];
+  RowF T[kN], T_final[kN], dpix[3][kN], bg_dot[kN];
+  RowF accum[3][kN], last_color[3][kN], last_alpha[kN];
+  RowI last[kN];
 };
 
 // Loads final transmittance, contributor counts and dL/dpixel of the tile's
@@ -47,17 +42,57 @@ int LoadTile(int tx, int ty, const std::array<float, 3>& bg,
         last = static_cast<int>(state.n_contrib[k]);
       }
       st->T[r][c] = st->T_final[r][c] = T;
-      for (int ch = 0; ch < 3; ++ch) {
-        st->dpix[ch][r][c] = g[ch];
-        st->accum[ch][r][c] = st->last_color[ch][r][c] = 0.f;
-      }
+      for (int ch = 0; ch < 3; ++ch) st->dpix[ch][r][c] = g[ch];
       st->bg_dot[r][c] = bg[0] * g[0] + bg[1] * g[1] + bg[2] * g[2];
-      st->last_alpha[r][c] = 0.f;
       st->last[r][c] = last;
       max_last = std::max(max_last, last);
     }
+    for (int ch = 0; ch < 3; ++ch) {
+      st->accum[ch][r] = st->last_color[ch][r] = RowF{};
+    }
+    st->last_alpha[r] = RowF{};
   }
   return max_last;
+}
+
+// Gradient sums of one splat over a tile, one lane per column.
+struct RowGrads {
+  RowF mx{}, my{}, a{}, b{}, c{}, op{}, rgb[3] = {};
+};
+
+// One splat over one tile row, back to front (Inria's recurrence).
+inline void BackwardRow(const Splat& s, int j, const RowF& dx, float dy, int r,
+                        TileState* st, RowGrads* g) {
+  const RowFalloff f = SplatRow(dx, dy, s.conic_a, s.conic_b, s.conic_c);
+  const RowF raw = s.opacity * f.G;
+  const RowF alpha = raw > kMaxAlpha ? RowF{} + kMaxAlpha : raw;
+  const RowI valid =
+      (RowI{} + j < st->last[r]) & (f.power <= 0.f) & (alpha >= kMinAlpha);
+  const RowF inv_one_minus = 1.f / (1.f - alpha);
+  const RowF T = valid ? st->T[r] * inv_one_minus : st->T[r];
+  const RowF w = valid ? alpha * T : RowF{};
+  const RowF la = st->last_alpha[r];
+  RowF dL_dalpha{};
+  for (int ch = 0; ch < 3; ++ch) {
+    const RowF acc = la * st->last_color[ch][r] + (1.f - la) * st->accum[ch][r];
+    dL_dalpha += (s.color[ch] - acc) * st->dpix[ch][r];
+    st->accum[ch][r] = valid ? acc : st->accum[ch][r];
+    st->last_color[ch][r] =
+        valid ? RowF{} + s.color[ch] : st->last_color[ch][r];
+    g->rgb[ch] += w * st->dpix[ch][r];
+  }
+  dL_dalpha = dL_dalpha * T - st->T_final[r] * inv_one_minus * st->bg_dot[r];
+  st->T[r] = T;
+  st->last_alpha[r] = valid ? alpha : la;
+  // The 0.99 cap has zero slope where it binds.
+  const RowF dL_draw = valid & (raw < kMaxAlpha) ? dL_dalpha : RowF{};
+  const RowF dL_dpower = dL_draw * raw;
+  g->op += f.G * dL_draw;
+  g->mx += dL_dpower * (s.conic_a * dx + s.conic_b * dy);
+  g->my += dL_dpower * (s.conic_c * dy + s.conic_b * dx);
+  g->a += dL_dpower * (-0.5f * dx * dx);
+  g->b += dL_dpower * (-dx * dy);
+  g->c += dL_dpower * (-0.5f * dy * dy);
 }
 
 // Walks one tile back to front, adding splat gradients into `out`.
@@ -69,60 +104,24 @@ void BackwardTile(const std::vector<Splat>& splats, const uint32_t* list,
   const int base_x = tx * kN, base_y = ty * kN;
   const int row_lo = std::max(0, state.rect.y0 - base_y);
   const int row_hi = std::min(kN, state.rect.y0 + state.rect.height - base_y);
+  RowF col_x;
+  for (int c = 0; c < kN; ++c) col_x[c] = static_cast<float>(base_x + c) + 0.5f;
   for (int j = max_last - 1; j >= 0; --j) {
     const Splat& s = splats[list[j]];
     const int r0 = std::max(row_lo, s.row_min - base_y);
     const int r1 = std::min(row_hi, s.row_max - base_y + 1);
-    float g_mx = 0, g_my = 0, g_a = 0, g_b = 0, g_c = 0, g_op = 0;
-    float g_r = 0, g_g = 0, g_bl = 0;
+    if (r0 >= r1) continue;
+    const RowF dx = col_x - s.mean_x;
+    RowGrads g;
     for (int r = r0; r < r1; ++r) {
       const float dy = static_cast<float>(base_y + r) + 0.5f - s.mean_y;
-#pragma omp simd reduction(+ : g_mx, g_my, g_a, g_b, g_c, g_op, g_r, g_g, g_bl)
-      for (int c = 0; c < kN; ++c) {
-        const float dx = static_cast<float>(base_x + c) + 0.5f - s.mean_x;
-        const float power =
-            -0.5f * (s.conic_a * dx * dx + s.conic_c * dy * dy) -
-            s.conic_b * dx * dy;
-        const float G = FastExp(power);
-        const float raw = s.opacity * G;
-        const float alpha = std::min(kMaxAlpha, raw);
-        const bool valid =
-            j < st->last[r][c] && power <= 0.f && alpha >= kMinAlpha;
-        const float one_minus = 1.f - alpha;
-        const float T = valid ? st->T[r][c] / one_minus : st->T[r][c];
-        const float w = valid ? alpha * T : 0.f;
-        const float la = st->last_alpha[r][c];
-        float dL_dalpha = 0.f;
-        const float col[3] = {s.color[0], s.color[1], s.color[2]};
-        for (int ch = 0; ch < 3; ++ch) {
-          const float acc =
-              la * st->last_color[ch][r][c] + (1.f - la) * st->accum[ch][r][c];
-          dL_dalpha += (col[ch] - acc) * st->dpix[ch][r][c];
-          st->accum[ch][r][c] = valid ? acc : st->accum[ch][r][c];
-          st->last_color[ch][r][c] = valid ? col[ch] : st->last_color[ch][r][c];
-        }
-        g_r += w * st->dpix[0][r][c];
-        g_g += w * st->dpix[1][r][c];
-        g_bl += w * st->dpix[2][r][c];
-        dL_dalpha =
-            dL_dalpha * T - st->T_final[r][c] / one_minus * st->bg_dot[r][c];
-        st->T[r][c] = T;
-        st->last_alpha[r][c] = valid ? alpha : la;
-        const float dL_draw = valid && raw < kMaxAlpha ? dL_dalpha : 0.f;
-        const float dL_dpower = dL_draw * raw;
-        g_op += G * dL_draw;
-        g_mx += dL_dpower * (s.conic_a * dx + s.conic_b * dy);
-        g_my += dL_dpower * (s.conic_c * dy + s.conic_b * dx);
-        g_a += dL_dpower * (-0.5f * dx * dx);
-        g_b += dL_dpower * (-dx * dy);
-        g_c += dL_dpower * (-0.5f * dy * dy);
-      }
+      BackwardRow(s, j, dx, dy, r, st, &g);
     }
     SplatGrad& o = out[list[j]];
-    o.mean_x += g_mx, o.mean_y += g_my;
-    o.conic_a += g_a, o.conic_b += g_b, o.conic_c += g_c;
-    o.opacity += g_op;
-    o.color[0] += g_r, o.color[1] += g_g, o.color[2] += g_bl;
+    o.mean_x += RowSum(g.mx), o.mean_y += RowSum(g.my);
+    o.conic_a += RowSum(g.a), o.conic_b += RowSum(g.b);
+    o.conic_c += RowSum(g.c), o.opacity += RowSum(g.op);
+    for (int ch = 0; ch < 3; ++ch) o.color[ch] += RowSum(g.rgb[ch]);
   }
 }
 

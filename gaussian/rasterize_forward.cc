@@ -30,52 +30,50 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
   constexpr int kN = kTileSize;
   const TilePixels px = PixelsOf(tx, ty, rect);
   const int base_x = tx * kN, base_y = ty * kN;
-  alignas(64) float T[kN][kN], cr[kN][kN], cg[kN][kN], cb[kN][kN];
-  alignas(64) float active[kN][kN];
-  alignas(64) int last[kN][kN];
+  RowF T[kN], cr[kN], cg[kN], cb[kN];
+  RowI active[kN], last[kN];
+  RowF col_x;  // Pixel-centre x of each lane.
+  RowI in_x;   // Lanes whose column lies in the rect.
+  for (int c = 0; c < kN; ++c) {
+    col_x[c] = static_cast<float>(base_x + c) + 0.5f;
+    in_x[c] = base_x + c >= px.x0 && base_x + c < px.x1 ? -1 : 0;
+  }
   int active_count = 0;
   for (int r = 0; r < kN; ++r) {
-    for (int c = 0; c < kN; ++c) {
-      const int x = base_x + c, y = base_y + r;
-      const bool in = x >= px.x0 && x < px.x1 && y >= px.y0 && y < px.y1;
-      T[r][c] = 1.f, cr[r][c] = cg[r][c] = cb[r][c] = 0.f;
-      active[r][c] = in ? 1.f : 0.f;
-      last[r][c] = 0;
-      active_count += in;
-    }
+    const bool in_y = base_y + r >= px.y0 && base_y + r < px.y1;
+    T[r] = RowF{} + 1.f;
+    cr[r] = cg[r] = cb[r] = RowF{};
+    active[r] = in_y ? in_x : RowI{};
+    last[r] = RowI{};
+    active_count += in_y ? px.x1 - px.x0 : 0;
   }
   const int row_lo = px.y0 - base_y, row_hi = px.y1 - base_y;  // [lo, hi)
   for (uint32_t j = 0; j < count && active_count > 0; ++j) {
     const Splat& s = splats[list[j]];
     const int r0 = std::max(row_lo, s.row_min - base_y);
     const int r1 = std::min(row_hi, s.row_max - base_y + 1);
+    const RowF dx = col_x - s.mean_x;
     const int contributor = static_cast<int>(j) + 1;
-    int stopped = 0;
+    RowI stopped{};
     for (int r = r0; r < r1; ++r) {
       const float dy = static_cast<float>(base_y + r) + 0.5f - s.mean_y;
-#pragma omp simd reduction(+ : stopped)
-      for (int c = 0; c < kN; ++c) {
-        const float dx = static_cast<float>(base_x + c) + 0.5f - s.mean_x;
-        const float power =
-            -0.5f * (s.conic_a * dx * dx + s.conic_c * dy * dy) -
-            s.conic_b * dx * dy;
-        const float alpha = std::min(kMaxAlpha, s.opacity * FastExp(power));
-        const bool ok =
-            active[r][c] > 0.f && power <= 0.f && alpha >= kMinAlpha;
-        const float test_T = T[r][c] * (1.f - alpha);
-        const bool stop = ok && test_T < kMinTransmittance;
-        const bool contrib = ok && !stop;
-        const float w = contrib ? alpha * T[r][c] : 0.f;
-        cr[r][c] += w * s.color[0];
-        cg[r][c] += w * s.color[1];
-        cb[r][c] += w * s.color[2];
-        T[r][c] = contrib ? test_T : T[r][c];
-        last[r][c] = contrib ? contributor : last[r][c];
-        active[r][c] = stop ? 0.f : active[r][c];
-        stopped += stop ? 1 : 0;
-      }
+      const RowFalloff f = SplatRow(dx, dy, s.conic_a, s.conic_b, s.conic_c);
+      RowF alpha = s.opacity * f.G;
+      alpha = alpha > kMaxAlpha ? RowF{} + kMaxAlpha : alpha;
+      const RowI ok = active[r] & (f.power <= 0.f) & (alpha >= kMinAlpha);
+      const RowF test_T = T[r] * (1.f - alpha);
+      const RowI stop = ok & (test_T < kMinTransmittance);
+      const RowI contrib = ok & ~stop;
+      const RowF w = contrib ? alpha * T[r] : RowF{};
+      cr[r] += w * s.color[0];
+      cg[r] += w * s.color[1];
+      cb[r] += w * s.color[2];
+      T[r] = contrib ? test_T : T[r];
+      last[r] = contrib ? RowI{} + contributor : last[r];
+      active[r] &= ~stop;
+      stopped -= stop;
     }
-    active_count -= stopped;
+    for (int c = 0; c < kN; ++c) active_count -= stopped[c];
   }
   const PixelRect& out = state->rect;
   for (int y = px.y0; y < px.y1; ++y) {
