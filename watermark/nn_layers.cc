@@ -13,6 +13,11 @@ using RowMatrix =
 using MapMatrix = Eigen::Map<RowMatrix>;
 using ConstMapMatrix = Eigen::Map<const RowMatrix>;
 
+// Loops below this many values run on one thread: on a busy machine every
+// fork/join waits for a time slice of each thread, which costs more than
+// small loops save.
+constexpr size_t kParallelMin = size_t(1) << 18;
+
 // PyTorch's default initialisation: U(-1/sqrt(fan_in), 1/sqrt(fan_in)).
 void UniformInit(Parameter* p, int fan_in, std::mt19937* rng) {
   const float bound = 1.f / std::sqrt(float(fan_in));
@@ -25,7 +30,8 @@ void Im2Col(const float* image, int channels, int height, int width, int k,
             float* col) {
   const int pad = k / 2;
   const size_t hw = size_t(height) * width;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (hw * channels * k * k >= \
+                                              kParallelMin)
   for (int ci = 0; ci < channels; ++ci) {
     for (int ky = 0; ky < k; ++ky) {
       for (int kx = 0; kx < k; ++kx) {
@@ -151,7 +157,7 @@ void BatchNorm2d::Forward(const Tensor& x, Tensor* y, bool training) {
   y->ResizeLike(x);
   const size_t hw = x.PlaneSize();
   const double count = double(x.n) * hw;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (x.size() >= kParallelMin)
   for (int c = 0; c < x.c; ++c) {
     double mean, var;
     if (training) {
@@ -195,7 +201,7 @@ void BatchNorm2d::Backward(const Tensor& x, const Tensor& dy, Tensor* dx,
   if (dx) dx->ResizeLike(x);
   const size_t hw = x.PlaneSize();
   const double count = double(x.n) * hw;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (x.size() >= kParallelMin)
   for (int c = 0; c < x.c; ++c) {
     const double mean = mean_[c], invstd = invstd_[c];
     double sum_dy = 0.0, sum_dy_xhat = 0.0;
@@ -233,7 +239,7 @@ void BatchNorm2d::Backward(const Tensor& x, const Tensor& dy, Tensor* dx,
 void ReluForward(Tensor* x) {
   float* p = x->data.data();
   const size_t n = x->size();
-#pragma omp parallel for simd schedule(static)
+#pragma omp parallel for simd schedule(static) if (n >= kParallelMin)
   for (size_t i = 0; i < n; ++i) p[i] = p[i] > 0.f ? p[i] : 0.f;
 }
 
@@ -241,7 +247,7 @@ void ReluBackward(const Tensor& y, Tensor* dy) {
   const float* p = y.data.data();
   float* g = dy->data.data();
   const size_t n = y.size();
-#pragma omp parallel for simd schedule(static)
+#pragma omp parallel for simd schedule(static) if (n >= kParallelMin)
   for (size_t i = 0; i < n; ++i) g[i] = p[i] > 0.f ? g[i] : 0.f;
 }
 

@@ -22,8 +22,9 @@ int RunTrainDecoder(int argc, char** argv) {
       "train_decoder",
       "Trains the HiDDeN encoder/decoder pair; the decoder is WATER-GS's "
       "universal watermark decoder.");
-  parser.AddRequired("image_path", &options.image_path,
-                     "folder of training photos (jpg/png)");
+  parser.Add("image_path", &options.image_path,
+             "folder of training photos (jpg/png); required unless "
+             "--validate_only");
   parser.AddRequired("output_path", &options.output_path,
                      "weights file to write (decoder + encoder)");
   parser.Add("validation_path", &options.validation_path,
@@ -57,6 +58,9 @@ int RunTrainDecoder(int argc, char** argv) {
   parser.Add("max_minutes", &options.max_minutes,
              "stop cleanly after this many minutes (0: run all epochs)");
   parser.Add("seed", &seed, "random seed");
+  bool validate_only = false;
+  parser.AddFlag("validate_only", &validate_only,
+                 "only validate OUTPUT_PATH on --validation_path");
   if (!parser.Parse(argc, argv)) return 0;
   const int bits = options.config.num_bits;
   if (bits != 8 && bits != 16 && bits != 32 && bits != 48 && bits != 64)
@@ -72,6 +76,17 @@ int RunTrainDecoder(int argc, char** argv) {
   options.target_psnr = float(target_psnr);
   options.target_psnr_start = float(target_psnr_start);
   options.seed = uint32_t(seed);
+  if (validate_only) {
+    if (options.validation_path.empty())
+      watergs::Fail("--validate_only needs --validation_path");
+    auto model = watergs::LoadHiddenModel(options.output_path, true);
+    std::cout << watergs::FormatValidation(watergs::Validate(
+                     *model, watergs::LoadPhotoFolder(options.validation_path),
+                     options.validation_crop, 7))
+              << "\n";
+    return 0;
+  }
+  if (options.image_path.empty()) watergs::Fail("--image_path is required");
   watergs::TrainDecoder(options);
   std::cout << "wrote " << options.output_path << "\n";
   return 0;
