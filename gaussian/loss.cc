@@ -6,6 +6,10 @@
 #include <cmath>
 #include <limits>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "gaussian/error.h"
 
 namespace watergs {
@@ -46,66 +50,80 @@ void BlurPaddedRow(const T* padded, T* __restrict out, int len, int stride,
   }
 }
 
-// Row y of the vertical zero-padded blur of `planes` images of
-// height x len values each: out[p][y] = sum_k g[k] in[p][y + k - r].
+// Per-thread scratch for BlurStrip: padded input rows, a ring of the last
+// kSsimWindow horizontally blurred rows, and one output row, per plane.
 template <typename T>
-void BlurColumnsRow(const T* in, T* __restrict out, int height, int len, int y,
-                    const std::array<T, kSsimWindow>& g) {
-  std::fill(out, out + len, T(0));
-  for (int k = 0; k < kSsimWindow; ++k) {
-    const int yy = y + k - kRadius;
-    if (yy < 0 || yy >= height) continue;
-    const T gk = g[k];
-    const T* __restrict src = in + static_cast<size_t>(yy) * len;
-#pragma omp simd
-    for (int i = 0; i < len; ++i) out[i] += gk * src[i];
-  }
-}
-
-// Scratch planes reused across calls (one set per calling thread).
-template <typename T>
-struct SsimScratch {
-  std::vector<T> horizontal;  // 5 planes after the horizontal pass
-  std::vector<T> moments;     // 5 planes: mu_x, mu_y, E[x^2], E[y^2], E[xy]
-  std::vector<T> adjoint;     // 3 planes: dS/dmu_x, dS/dE[x^2], dS/dE[xy]
-  std::vector<double> row_sums;
+struct StripScratch {
+  std::vector<T> padded, ring, out;
 };
 
 template <typename T>
-SsimScratch<T>& Scratch() {
-  thread_local SsimScratch<T> scratch;
+StripScratch<T>& ThreadScratch() {
+  thread_local StripScratch<T> scratch;
   return scratch;
 }
 
-// Horizontal then vertical blur of `count` planes of height x len, the
-// horizontal input produced row by row by fill(y, padded_rows).
-template <typename T, typename Fill>
-void BlurPlanes(int count, int height, int len, int stride, Fill fill,
-                T* horizontal, T* out, const std::array<T, kSsimWindow>& g) {
-  const size_t plane = static_cast<size_t>(height) * len;
+// Rows [y0, y1) of the zero-padded 2-D blur of `count` planes of
+// height x len values. fill(r, padded, padded_len, pad) writes the input
+// rows r of every plane (plane p at padded + p * padded_len + pad);
+// emit(y, out) receives the blurred rows (plane p at out + p * len). Rows are
+// blurred horizontally once into a ring of the last 11, so the planes never
+// leave the cache.
+template <typename T, typename Fill, typename Emit>
+void BlurStrip(int count, int height, int len, int stride, int y0, int y1,
+               const std::array<T, kSsimWindow>& g, Fill&& fill, Emit&& emit) {
   const int pad = kRadius * stride;
-  // Small images are not worth waking threads for.
-  const bool parallel = plane >= kParallelMinValues;
+  const int padded_len = len + 2 * pad;
+  StripScratch<T>& s = ThreadScratch<T>();
+  s.padded.assign(static_cast<size_t>(count) * padded_len, T(0));
+  s.ring.resize(static_cast<size_t>(count) * kSsimWindow * len);
+  s.out.resize(static_cast<size_t>(count) * len);
+  auto ring_row = [&](int p, int r) {
+    return s.ring.data() +
+           (static_cast<size_t>(p) * kSsimWindow + (r % kSsimWindow)) * len;
+  };
+  auto blur_input_row = [&](int r) {
+    fill(r, s.padded.data(), padded_len, pad);
+    for (int p = 0; p < count; ++p) {
+      BlurPaddedRow(s.padded.data() + static_cast<size_t>(p) * padded_len,
+                    ring_row(p, r), len, stride, g);
+    }
+  };
+  for (int r = std::max(0, y0 - kRadius); r < std::min(height, y0 + kRadius);
+       ++r) {
+    blur_input_row(r);
+  }
+  for (int y = y0; y < y1; ++y) {
+    if (y + kRadius < height) blur_input_row(y + kRadius);
+    for (int p = 0; p < count; ++p) {
+      T* __restrict out = s.out.data() + static_cast<size_t>(p) * len;
+      std::fill(out, out + len, T(0));
+      for (int k = 0; k < kSsimWindow; ++k) {
+        const int r = y + k - kRadius;
+        if (r < 0 || r >= height) continue;
+        const T gk = g[k];
+        const T* __restrict src = ring_row(p, r);
+#pragma omp simd
+        for (int i = 0; i < len; ++i) out[i] += gk * src[i];
+      }
+    }
+    emit(y, s.out.data());
+  }
+}
+
+// Runs body(y0, y1) over contiguous row strips, one per thread.
+template <typename Body>
+void ForEachStrip(int height, bool parallel, Body&& body) {
 #pragma omp parallel if (parallel)
   {
-    std::vector<T> padded(static_cast<size_t>(count) * (len + 2 * pad), T(0));
-#pragma omp for schedule(static)
-    for (int y = 0; y < height; ++y) {
-      fill(y, padded.data(), len + 2 * pad, pad);
-      for (int p = 0; p < count; ++p) {
-        BlurPaddedRow(padded.data() + p * (len + 2 * pad),
-                      horizontal + p * plane + static_cast<size_t>(y) * len,
-                      len, stride, g);
-      }
-    }
-#pragma omp for schedule(static)
-    for (int y = 0; y < height; ++y) {
-      for (int p = 0; p < count; ++p) {
-        BlurColumnsRow(horizontal + p * plane,
-                       out + p * plane + static_cast<size_t>(y) * len, height,
-                       len, y, g);
-      }
-    }
+#ifdef _OPENMP
+    const int threads = omp_get_num_threads(), t = omp_get_thread_num();
+#else
+    const int threads = 1, t = 0;
+#endif
+    const int y0 = static_cast<int>(int64_t(height) * t / threads);
+    const int y1 = static_cast<int>(int64_t(height) * (t + 1) / threads);
+    if (y1 > y0) body(y0, y1);
   }
 }
 
@@ -118,12 +136,19 @@ double SsimInterleaved(const T* x, const T* y, int width, int height,
   const auto g = GaussianWindow<T>();
   const int len = width * channels;
   const size_t plane = static_cast<size_t>(height) * len;
-  SsimScratch<T>& s = Scratch<T>();
-  s.horizontal.resize(5 * plane);
-  s.moments.resize(5 * plane);
-  s.row_sums.assign(height, 0.0);
+  const bool parallel = plane >= kParallelMinValues;
+  thread_local std::vector<T> adjoint;  // 3 planes: dS/dmu_x, dS/dE[x^2],
+                                        // dS/dE[xy], scaled by 1 / count
+  thread_local std::vector<double> row_sums;
+  row_sums.assign(height, 0.0);
+  if (grad_x) adjoint.resize(3 * plane);
+  // Lambdas run on other threads must not name the thread_local vectors.
+  T* adj = adjoint.data();
+  double* sums = row_sums.data();
+  const T c1 = static_cast<T>(kC1), c2 = static_cast<T>(kC2);
+  const T inv_count = static_cast<T>(1.0 / static_cast<double>(plane));
 
-  // Padded rows of x, y, x^2, y^2, xy (zeros outside the image).
+  // Padded rows of x, y, x^2, y^2, xy.
   auto fill_moments = [&](int row, T* padded, int padded_len, int pad) {
     const T* xr = x + static_cast<size_t>(row) * len;
     const T* yr = y + static_cast<size_t>(row) * len;
@@ -140,65 +165,78 @@ double SsimInterleaved(const T* x, const T* y, int width, int height,
       pxy[i] = xr[i] * yr[i];
     }
   };
-  BlurPlanes<T>(5, height, len, channels, fill_moments, s.horizontal.data(),
-                s.moments.data(), g);
-
-  const T c1 = static_cast<T>(kC1), c2 = static_cast<T>(kC2);
-  const T inv_count = static_cast<T>(1.0 / static_cast<double>(plane));
-  if (grad_x) s.adjoint.resize(3 * plane);
-  const T* mx = s.moments.data();
-  const T* my = mx + plane;
-  const T* exx = my + plane;
-  const T* eyy = exx + plane;
-  const T* exy = eyy + plane;
-#pragma omp parallel for schedule(static) if (plane >= kParallelMinValues)
-  for (int row = 0; row < height; ++row) {
-    double row_sum = 0;
-    for (size_t i = static_cast<size_t>(row) * len,
-                end = static_cast<size_t>(row + 1) * len;
-         i < end; ++i) {
+  // The SSIM map of a row from its local moments, and its adjoints:
+  // S = A1 A2 / (B1 B2) as a function of mu_x, E[x^2], E[xy].
+  auto ssim_row = [&](int row, const T* moments) {
+    const T* mx = moments;
+    const T* my = mx + len;
+    const T* exx = my + len;
+    const T* eyy = exx + len;
+    const T* exy = eyy + len;
+    const size_t base = static_cast<size_t>(row) * len;
+    // Kept free of the double sum and of branches so that it vectorises.
+    thread_local std::vector<T> map;
+    map.resize(len);
+    T* __restrict out = map.data();
+#pragma omp simd
+    for (int i = 0; i < len; ++i) {
       const T a1 = 2 * mx[i] * my[i] + c1;
       const T a2 = 2 * (exy[i] - mx[i] * my[i]) + c2;
       const T b1 = mx[i] * mx[i] + my[i] * my[i] + c1;
       const T b2 = (exx[i] - mx[i] * mx[i]) + (eyy[i] - my[i] * my[i]) + c2;
-      const T ssim = (a1 * a2) / (b1 * b2);
-      row_sum += ssim;
-      if (!grad_x) continue;
-      // S = A1 A2 / (B1 B2) as a function of mu_x, E[x^2], E[xy].
-      const T d_mu = ssim * (2 * my[i] / a1 - 2 * my[i] / a2 - 2 * mx[i] / b1 +
-                             2 * mx[i] / b2);
-      s.adjoint[i] = inv_count * d_mu;
-      s.adjoint[plane + i] = -inv_count * ssim / b2;
-      s.adjoint[2 * plane + i] = inv_count * 2 * a1 / (b1 * b2);
+      out[i] = (a1 * a2) / (b1 * b2);
     }
-    s.row_sums[row] = row_sum;
-  }
+    if (grad_x) {
+      T* __restrict d_mu = adj + base;
+      T* __restrict d_xx = adj + plane + base;
+      T* __restrict d_xy = adj + 2 * plane + base;
+#pragma omp simd
+      for (int i = 0; i < len; ++i) {
+        const T a1 = 2 * mx[i] * my[i] + c1;
+        const T a2 = 2 * (exy[i] - mx[i] * my[i]) + c2;
+        const T b1 = mx[i] * mx[i] + my[i] * my[i] + c1;
+        const T b2 = (exx[i] - mx[i] * mx[i]) + (eyy[i] - my[i] * my[i]) + c2;
+        const T ssim = out[i];
+        d_mu[i] =
+            inv_count * ssim *
+            (2 * my[i] / a1 - 2 * my[i] / a2 - 2 * mx[i] / b1 + 2 * mx[i] / b2);
+        d_xx[i] = -inv_count * ssim / b2;
+        d_xy[i] = inv_count * 2 * a1 / (b1 * b2);
+      }
+    }
+    double row_sum = 0;
+    for (int i = 0; i < len; ++i) row_sum += out[i];
+    sums[row] = row_sum;
+  };
+  ForEachStrip(height, parallel, [&](int y0, int y1) {
+    BlurStrip<T>(5, height, len, channels, y0, y1, g, fill_moments, ssim_row);
+  });
   double sum = 0;
-  for (double r : s.row_sums) sum += r;
+  for (double r : row_sums) sum += r;
   if (!grad_x) return sum / static_cast<double>(plane);
 
   // The window is symmetric, so the adjoint of the zero-padded correlation
   // is the same zero-padded correlation.
   auto fill_adjoint = [&](int row, T* padded, int padded_len, int pad) {
     for (int p = 0; p < 3; ++p) {
-      std::copy_n(s.adjoint.data() + p * plane + static_cast<size_t>(row) * len,
-                  len, padded + p * padded_len + pad);
+      std::copy_n(adj + p * plane + static_cast<size_t>(row) * len, len,
+                  padded + p * padded_len + pad);
     }
   };
-  // Reuse the moment planes 0..2 for the blurred adjoints.
-  BlurPlanes<T>(3, height, len, channels, fill_adjoint, s.horizontal.data(),
-                s.moments.data(), g);
-  const T* b_mu = s.moments.data();
-  const T* b_xx = b_mu + plane;
-  const T* b_xy = b_xx + plane;
-#pragma omp parallel for schedule(static) if (plane >= kParallelMinValues)
-  for (int row = 0; row < height; ++row) {
-    for (size_t i = static_cast<size_t>(row) * len,
-                end = static_cast<size_t>(row + 1) * len;
-         i < end; ++i) {
-      grad_x[i] = b_mu[i] + 2 * x[i] * b_xx[i] + y[i] * b_xy[i];
+  auto gradient_row = [&](int row, const T* blurred) {
+    const size_t base = static_cast<size_t>(row) * len;
+    const T* b_mu = blurred;
+    const T* b_xx = b_mu + len;
+    const T* b_xy = b_xx + len;
+    for (int i = 0; i < len; ++i) {
+      grad_x[base + i] =
+          b_mu[i] + 2 * x[base + i] * b_xx[i] + y[base + i] * b_xy[i];
     }
-  }
+  };
+  ForEachStrip(height, parallel, [&](int y0, int y1) {
+    BlurStrip<T>(3, height, len, channels, y0, y1, g, fill_adjoint,
+                 gradient_row);
+  });
   return sum / static_cast<double>(plane);
 }
 
