@@ -2,6 +2,7 @@
 // splat-pixel throughput, render-context memory per Gaussian, and the cost
 // of a crop relative to the full frame, on synthetic SfM-like scenes.
 // Usage: raster_benchmark [--threads 2] [--repeats 15] [--sh_degree 3]
+//        [--scenes 0|8|100]  (all, the 8k scene, the 100k scenes)
 #include <omp.h>
 
 #include <Eigen/Geometry>
@@ -27,6 +28,8 @@ struct BenchOptions {
   int threads = 2;
   int repeats = 15;
   int sh_degree = 3;
+  // Which scenes: 0 = all, 8 = the 8k scene only, 100 = the 100k ones only.
+  int scenes = 0;
 };
 
 RenderCamera BenchCamera() {
@@ -197,6 +200,8 @@ BenchOptions Parse(int argc, char** argv) {
       o.repeats = value;
     else if (flag == "--sh_degree")
       o.sh_degree = value;
+    else if (flag == "--scenes")
+      o.scenes = value;
     else {
       std::fprintf(stderr, "raster_benchmark: unknown option %s\n", argv[i]);
       std::exit(2);
@@ -217,6 +222,7 @@ int main(int argc, char** argv) {
   const RenderCamera cam = BenchCamera();
   RenderOptions full;
   for (int active : {0, opt.sh_degree}) {
+    if (opt.scenes == 100) break;
     full.active_sh_degree = active;
     const GaussianModel sfm =
         SyntheticScene(cam, 8000, opt.sh_degree, false, 1);
@@ -224,6 +230,7 @@ int main(int argc, char** argv) {
     Run(name.c_str(), sfm, cam, full, opt.repeats);
   }
   full.active_sh_degree = -1;
+  if (opt.scenes == 8) return 0;
   const GaussianModel big = SyntheticScene(cam, 100000, opt.sh_degree, true, 2);
   const double full_time =
       Run("trained-like 100k", big, cam, full, std::max(3, opt.repeats / 3));

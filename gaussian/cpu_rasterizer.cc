@@ -38,6 +38,16 @@ bool AlphaSupport(const ProjectedGaussian& p, float opacity, Splat* s,
   };
   s->row_min = clamp_int(y_lo);
   s->row_max = clamp_int(y_hi);
+  // Row intervals of the ellipse a dx^2 + 2 b dx dy + c dy^2 <= 2 level:
+  // centre -b/a dy, half-width^2 = 2 level / a - dy^2 / (a cov_yy).
+  const double a = p.conic[0], b = p.conic[1];
+  const double shear = -b / a, reach = 2.0 * level / a;
+  const double narrowing = 1.0 / (a * p.cov2d[2]);
+  const bool usable = std::isfinite(shear) && std::isfinite(reach) &&
+                      std::isfinite(narrowing) && reach < 1e30;
+  s->shear = usable ? static_cast<float>(shear) : 0.f;
+  s->reach = usable ? static_cast<float>(reach) * 1.001f : 1e30f;
+  s->narrowing = usable ? static_cast<float>(narrowing) * 0.999f : 0.f;
   auto tile = [](int v) {
     return v >= 0 ? v / kTileSize : -((-v + kTileSize - 1) / kTileSize);
   };

@@ -115,6 +115,7 @@ void BackwardTile(const std::vector<Splat>& splats, const uint32_t* list,
     RowGrads g;
     for (int r = r0; r < r1; ++r) {
       const float dy = static_cast<float>(base_y + r) + 0.5f - s.mean_y;
+      if (!RowReachesTile(s, dy, base_x)) continue;
       BackwardRow(s, j, dx, dy, r, st, &g);
     }
     SplatGrad& o = out[list[j]];

@@ -57,6 +57,7 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
     RowI stopped{};
     for (int r = r0; r < r1; ++r) {
       const float dy = static_cast<float>(base_y + r) + 0.5f - s.mean_y;
+      if (!RowReachesTile(s, dy, base_x)) continue;
       const RowFalloff f = SplatRow(dx, dy, s.conic_a, s.conic_b, s.conic_c);
       RowF alpha = s.opacity * f.G;
       alpha = alpha > kMaxAlpha ? RowF{} + kMaxAlpha : alpha;

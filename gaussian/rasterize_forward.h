@@ -39,9 +39,24 @@ struct alignas(64) Splat {
   // Rows y (integers, full frame) where alpha can reach 1/255: [row_min,
   // row_max]; rows outside are skipped without changing the result.
   int row_min, row_max;
+  // On the row at dy from the mean, alpha can reach 1/255 only for
+  // |x - (mean_x + shear * dy)| <= sqrt(reach - dy^2 * narrowing) (slightly
+  // widened); rows whose interval misses a tile are skipped there.
+  float shear, reach, narrowing;
   // Padding to 64 bytes.
-  float pad[5];
+  float pad[2];
 };
+
+// Whether the splat's alpha can reach 1/255 somewhere on the tile row at
+// offset dy, columns [base_x, base_x + 16).
+inline bool RowReachesTile(const Splat& s, float dy, int base_x) {
+  const float h2 = s.reach - dy * dy * s.narrowing;
+  if (!(h2 >= 0.f)) return false;
+  const float half = __builtin_sqrtf(h2) * 1.001f + 0.5f;
+  const float center = s.mean_x + s.shear * dy;
+  return center + half >= static_cast<float>(base_x) + 0.5f &&
+         center - half <= static_cast<float>(base_x + kTileSize) - 0.5f;
+}
 
 // Per-pixel results of a forward pass that the backward pass needs.
 struct BlendState {
