@@ -36,18 +36,25 @@ sky_sphere { pigment { gradient y color_map { [0 color rgb <0.85, 0.9, 1.0>] [1 
   pigment { image_map { png File interpolate 2 } translate <-0.5, -0.5, 0> scale Scale }
 #end
 
+// A photo-like image stretched once over a Width x Height panel whose bottom edge is centred at the origin:
+// no tiling, so no repeated texture that could give SIFT false matches.
+#macro PanelImage(File, Width, Height)
+  texture { pigment { image_map { png File once interpolate 2 } scale <Width, Height, 1> translate <-Width / 2, 0, 0> }
+            finish { diffuse 0.8 } }
+#end
+
 // Textures for the backdrop panels; each panel differs so SIFT matches are unambiguous.
-#macro PanelTexture(Index)
+#macro PanelTexture(Index, Width, Height)
   #switch (mod(Index, 8))
-    #case (0) texture { ImagePigment("Mount1.png", 1.3) finish { diffuse 0.8 } } #break
+    #case (0) PanelImage("Mount1.png", Width, Height) #break
     #case (1) texture { pigment { brick color rgb 0.75 color rgb <0.6, 0.2, 0.1> brick_size <0.6, 0.25, 0.3> mortar 0.03 }
                         finish { diffuse 0.8 } }
               texture { pigment { granite color_map { [0 rgbt <0, 0, 0, 1>] [0.6 rgbt <0, 0, 0, 1>] [1 rgbt <0, 0, 0, 0.4>] } scale 0.7 } } #break
-    #case (2) texture { ImagePigment("fract003.png", <2.0, 1.25, 1>) finish { diffuse 0.8 } } #break
+    #case (2) PanelImage("fract003.png", Width, Height) #break
     #case (3) texture { T_Stone8 scale 0.8 } #break
-    #case (4) texture { ImagePigment("plasma3.png", 1.1) finish { diffuse 0.8 } } #break
+    #case (4) PanelImage("plasma3.png", Width, Height) #break
     #case (5) texture { pigment { Blue_Agate scale 0.6 } finish { diffuse 0.8 } } #break
-    #case (6) texture { ImagePigment("mtmandj.png", <2.0, 1.25, 1>) finish { diffuse 0.8 } } #break
+    #case (6) PanelImage("mtmandj.png", Width, Height) #break
     #case (7) texture { T_Stone21 scale 0.7 } #break
   #end
 #end
@@ -57,7 +64,7 @@ sky_sphere { pigment { gradient y color_map { [0 color rgb <0.85, 0.9, 1.0>] [1 
   #local Width = 2 * Radius * tan(pi / Count) + 0.05;
   #for (Index, 0, Count - 1)
     box { <-Width / 2, 0, 0>, <Width / 2, Height, 0.3>
-      PanelTexture(Index + Phase)
+      PanelTexture(Index + Phase, Width, Height)
       translate <0, 0, Radius> rotate y * (360 * Index / Count)
     }
   #end

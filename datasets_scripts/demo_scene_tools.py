@@ -250,7 +250,7 @@ def cmd_compare(sparse_dir, gt_dir):
     scale = numerator / denominator
     # Centre errors in ground-truth units (the similarity's scale divided out).
     centre_errors = [math.sqrt(dot(sub(sub(e, est_mean), [scale * x for x in sub(g, gt_mean)]),
-                                   sub(sub(e, est_mean), [scale * x for x in sub(g, gt_mean)]))) / scale
+                                   sub(sub(e, est_mean), [scale * x for x in sub(g, gt_mean)]))) / abs(scale)
                      for e, g in zip(est_c, gt_c)]
     radius = max(math.hypot(*camera_centre(gt_rot[n], truth[n][1])[:2]) for n in names)
     print("ground truth: %d common images; rotation error mean %.3f max %.3f deg; centre error mean %.4f max "

@@ -2,26 +2,27 @@
 # Regenerates the embedded demo scene: renders demo_scene.pov with POV-Ray from two rings of 24 cameras
 # (48 views, 480x360) and reconstructs it with COLMAP (CPU SIFT, exhaustive matching, incremental mapper).
 #
-# Usage: bash datasets_scripts/make_demo_scene.sh [--variant 1|2] [--keep-database] [out_dir]
+# Usage: bash datasets_scripts/make_demo_scene.sh [--variant 1|2] [--debug] [out_dir]
 #   out_dir defaults to datasets_scripts/demo_scene (variant 1, the committed scene) and
 #   datasets_scripts/demo_scene_v2 (variant 2). Writes:
 #     out_dir/images/view_NNN.jpg          JPEG quality 90, no render-date metadata
 #     out_dir/sparse/0/{cameras,images,points3D}.bin
 #     out_dir/ground_truth/{cameras,images,points3D}.txt   the POV-Ray poses as a COLMAP text model
 #                                                          (world = POV-Ray (x, z, y), z up; match by NAME)
+# --debug keeps COLMAP's database and logs (OUT_DIR/logs), or the scratch folder of a failed run.
 # Needs: povray, povray-includes, colmap (3.8), python3. Deterministic: single-threaded matching and mapping,
 # fixed COLMAP seed; the same machine gives byte-identical output.
 set -euo pipefail
 
 script_dir="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 variant=1
-keep_database=0
+debug=0
 out_dir=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --variant) variant="${2:?--variant needs 1 or 2}"; shift 2 ;;
-    --keep-database) keep_database=1; shift ;;
-    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+    --debug) debug=1; shift ;;
+    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     -*) echo "make_demo_scene: unknown option $1" >&2; exit 2 ;;
     *) out_dir="$1"; shift ;;
   esac
@@ -47,7 +48,9 @@ export QT_QPA_PLATFORM=offscreen
 # run never leaves a half-written scene.
 mkdir -p "$(dirname "$out_dir")"
 work="$(mktemp -d "${out_dir%/}.tmp.XXXXXX")"
-trap 'rm -rf "$work"' EXIT
+# --debug keeps the scratch folder of a failed run, and the database and logs of a good one (OUT_DIR/logs).
+cleanup() { if [ "$debug" -eq 1 ]; then echo "make_demo_scene: scratch folder kept: $work" >&2; else rm -rf "$work"; fi; }
+trap cleanup EXIT
 mkdir -p "$work/images" "$work/sparse" "$work/logs"
 
 echo "make_demo_scene: variant $variant -> $out_dir"
@@ -68,8 +71,10 @@ while read -r name cam_x cam_y cam_z look_x look_y look_z; do
 done <"$work/views.txt"
 echo "make_demo_scene: rendered in $((SECONDS - start_seconds)) s"
 
-# PINHOLE with the known focal length: the renders are exact pinholes, so a distortion-free model is the
-# truth, and pinhole scenes need no undistortion before 3DGS training (what Inria's convert.py produces too).
+# PINHOLE with the exact intrinsics, held fixed: the renders are exact pinholes (POV-Ray samples pixel
+# centres, so the principal point is the image centre in COLMAP's convention), pinhole scenes need no
+# undistortion before 3DGS training (like the output of Inria's convert.py), and letting bundle adjustment
+# refine the focal length on this ring-shaped capture drove fx and fy far apart (180 and 75 px for a true 416).
 focal=$(awk -v w=$width -v fov=$fov_deg 'BEGIN { printf "%.6f", (w / 2) / (sin(fov * 3.14159265358979 / 360) / cos(fov * 3.14159265358979 / 360)) }')
 camera_params="$focal,$focal,$((width / 2)),$((height / 2))"
 database="$work/database.db"
@@ -92,7 +97,8 @@ run_colmap exhaustive_matcher --database_path "$database" \
   --SiftMatching.use_gpu 0 --SiftMatching.num_threads 1
 echo "make_demo_scene: colmap mapper"
 run_colmap mapper --database_path "$database" --image_path "$work/images" --output_path "$work/sparse" \
-  --Mapper.num_threads 1 --Mapper.ba_refine_principal_point 0
+  --Mapper.num_threads 1 --Mapper.ba_refine_focal_length 0 --Mapper.ba_refine_principal_point 0 \
+  --Mapper.ba_refine_extra_params 0
 
 if [ ! -f "$work/sparse/0/images.bin" ]; then
   echo "make_demo_scene: COLMAP produced no model" >&2; exit 1
@@ -117,9 +123,9 @@ if [ "$registered" != "$num_views" ]; then
 fi
 python3 "$tools" compare "$work/sparse/0" "$work/ground_truth"
 
-if [ "$keep_database" -eq 1 ]; then mv "$database" "$work/logs/"; else rm -f "$database"; fi
+if [ "$debug" -eq 1 ]; then mv "$database" "$work/logs/"; else rm -f "$database"; fi
 rm -f "$work/views.txt"
-[ "$keep_database" -eq 1 ] || rm -rf "$work/logs"
+[ "$debug" -eq 1 ] || rm -rf "$work/logs"
 rm -rf "$out_dir"
 mv "$work" "$out_dir"
 trap - EXIT
