@@ -8,14 +8,17 @@
 namespace watergs {
 
 struct ModelSummary {
-  // Counts as COLMAP reports them.
+  // Cameras, images and registered images (equal when read from files).
   size_t num_cameras = 0;
   size_t num_images = 0;
   size_t num_reg_images = 0;
+  // 3D points.
   size_t num_points3D = 0;
+  // Keypoints of registered images that observe a 3D point.
   size_t num_observations = 0;
-  // Observations / points, observations / registered images.
+  // Observations / points.
   double mean_track_length = 0;
+  // Observations / registered images.
   double mean_observations_per_image = 0;
   // Mean of Point3D::error over points with an error, in pixels.
   double mean_reprojection_error = 0;

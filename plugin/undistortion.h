@@ -29,6 +29,7 @@ Camera UndistortCamera(const Camera& camera,
 // the same rays): CV_32FC1 maps in OpenCV's pixel convention (pixel centres
 // at integers), ready for cv::remap.
 struct WarpMap {
+  // Source x and y for each target pixel, target height x width.
   cv::Mat map_x;
   cv::Mat map_y;
 };

@@ -63,7 +63,9 @@ class ImageLoader {
 
  private:
   struct Entry {
+    // The decoded view.
     ImageRGB image;
+    // Its place in order_ (most recent first).
     std::list<size_t>::iterator position;
   };
   std::mutex mutex_;
@@ -152,32 +154,82 @@ Workspace::Workspace(Workspace&&) noexcept = default;
 Workspace& Workspace::operator=(Workspace&&) noexcept = default;
 Workspace::~Workspace() = default;
 
+namespace {
+
+WorkspaceOptions WithDefaults(const WorkspaceOptions& options) {
+  WorkspaceOptions filled = options;
+  if (filled.workspace_path.empty() && filled.input_path.empty()) {
+    Fail("workspace: give --workspace_path or --input_path");
+  }
+  if (filled.downscale < 1) Fail("workspace: downscale must be >= 1");
+  const fs::path root(filled.workspace_path);
+  if (filled.image_path.empty()) filled.image_path = (root / "images").string();
+  if (filled.undistorted_path.empty()) {
+    filled.undistorted_path = (root / "undistorted_watergs").string();
+  }
+  return filled;
+}
+
+// Every view's image exists and, where the header tells, has its camera's
+// size (the rest is checked when decoded).
+void CheckViewImages(const Reconstruction& model,
+                     const std::vector<image_t>& views,
+                     const std::string& image_path,
+                     const std::string& model_path) {
+  for (const image_t id : views) {
+    const Image& image = model.GetImage(id);
+    const Camera& camera = model.GetCamera(image.camera_id);
+    const std::string path = (fs::path(image_path) / image.name).string();
+    if (!fs::is_regular_file(path)) {
+      FailAt(path, "missing (image " + std::to_string(id) + " of the model " +
+                       model_path + ")");
+    }
+    int width = 0, height = 0;
+    if (ReadImageHeaderSize(path, &width, &height) &&
+        (uint64_t(width) != camera.width ||
+         uint64_t(height) != camera.height)) {
+      FailAt(path, "is " + SizeText(width, height) + " but its camera " +
+                       std::to_string(camera.camera_id) + " is " +
+                       SizeText(camera.width, camera.height));
+    }
+  }
+}
+
+// The pinhole render camera of `image`: `pinhole` intrinsics scaled to
+// round(size / downscale), COLMAP's world-to-camera pose.
+RenderCamera MakeRenderCamera(const Image& image, const Camera& pinhole,
+                              int downscale) {
+  RenderCamera camera;
+  camera.width =
+      std::max<long>(1, std::lround(pinhole.width / double(downscale)));
+  camera.height =
+      std::max<long>(1, std::lround(pinhole.height / double(downscale)));
+  const double sx = camera.width / double(pinhole.width);
+  const double sy = camera.height / double(pinhole.height);
+  camera.fx = pinhole.params[0] * sx;
+  camera.fy = pinhole.params[1] * sy;
+  camera.cx = pinhole.params[2] * sx;
+  camera.cy = pinhole.params[3] * sy;
+  camera.R = image.RotationMatrix();
+  camera.t = image.tvec;
+  return camera;
+}
+
+}  // namespace
+
 // Fills default paths, reads the model (through colmap image_undistorter if
 // asked), sorts the views and checks every image against its camera.
 Workspace Workspace::Open(const WorkspaceOptions& options) {
   Workspace workspace;
   WorkspaceOptions& opts = workspace.options_;
-  opts = options;
-  if (opts.workspace_path.empty() && opts.input_path.empty()) {
-    Fail("workspace: give --workspace_path or --input_path");
-  }
-  if (opts.downscale < 1) Fail("workspace: downscale must be >= 1");
-  if (opts.image_path.empty()) {
-    opts.image_path = (fs::path(opts.workspace_path) / "images").string();
-  }
-  if (opts.undistorted_path.empty()) {
-    opts.undistorted_path =
-        (fs::path(opts.workspace_path) / "undistorted_watergs").string();
-  }
+  opts = WithDefaults(options);
   workspace.model_path_ = FindModelPath(
       opts.input_path.empty() ? opts.workspace_path : opts.input_path);
   workspace.reconstruction_ = ReadReconstruction(workspace.model_path_);
-  bool any_distorted = false;
   for (const auto& [id, camera] : workspace.reconstruction_.Cameras()) {
-    any_distorted |= camera.HasDistortion();
+    workspace.undistorted_ |= camera.HasDistortion();
   }
-  workspace.undistorted_ = any_distorted;
-  if (any_distorted && opts.use_colmap_undistorter) {
+  if (workspace.undistorted_ && opts.use_colmap_undistorter) {
     workspace.model_path_ = RunColmapUndistorter(opts, workspace.model_path_);
     opts.image_path = (fs::path(opts.undistorted_path) / "images").string();
     workspace.reconstruction_ = ReadReconstruction(workspace.model_path_);
@@ -191,48 +243,15 @@ Workspace Workspace::Open(const WorkspaceOptions& options) {
             [&](image_t a, image_t b) {
               return model.GetImage(a).name < model.GetImage(b).name;
             });
-  for (size_t view = 0; view < workspace.views_.size(); ++view) {
-    const Image& image = workspace.ViewImage(view);
-    const Camera& camera = model.GetCamera(image.camera_id);
-    const std::string path = (fs::path(opts.image_path) / image.name).string();
-    if (!fs::is_regular_file(path)) {
-      FailAt(path, "missing (image " + std::to_string(image.image_id) +
-                       " of the model " + workspace.model_path_ + ")");
-    }
-    int width = 0, height = 0;
-    if (ReadImageHeaderSize(path, &width, &height) &&
-        (uint64_t(width) != camera.width ||
-         uint64_t(height) != camera.height)) {
-      FailAt(path, "is " + SizeText(width, height) + " but its camera " +
-                       std::to_string(camera.camera_id) + " is " +
-                       SizeText(camera.width, camera.height));
-    }
+  CheckViewImages(model, workspace.views_, opts.image_path,
+                  workspace.model_path_);
+  for (const auto& [id, camera] : model.Cameras()) {
+    workspace.pinhole_cameras_[id] = UndistortCamera(camera);
   }
-  workspace.view_cameras_.resize(workspace.views_.size());
-  std::map<camera_t, Camera> pinholes;
-  for (size_t view = 0; view < workspace.views_.size(); ++view) {
-    const Image& image = workspace.ViewImage(view);
-    auto it = pinholes.find(image.camera_id);
-    if (it == pinholes.end()) {
-      it = pinholes
-               .emplace(image.camera_id,
-                        UndistortCamera(model.GetCamera(image.camera_id)))
-               .first;
-    }
-    const Camera& pinhole = it->second;
-    RenderCamera& camera = workspace.view_cameras_[view];
-    camera.width =
-        std::max<long>(1, std::lround(pinhole.width / double(opts.downscale)));
-    camera.height =
-        std::max<long>(1, std::lround(pinhole.height / double(opts.downscale)));
-    const double sx = camera.width / double(pinhole.width);
-    const double sy = camera.height / double(pinhole.height);
-    camera.fx = pinhole.params[0] * sx;
-    camera.fy = pinhole.params[1] * sy;
-    camera.cx = pinhole.params[2] * sx;
-    camera.cy = pinhole.params[3] * sy;
-    camera.R = image.RotationMatrix();
-    camera.t = image.tvec;
+  for (const image_t id : workspace.views_) {
+    const Image& image = model.GetImage(id);
+    workspace.view_cameras_.push_back(MakeRenderCamera(
+        image, workspace.pinhole_cameras_.at(image.camera_id), opts.downscale));
   }
   workspace.loader_ = std::make_unique<ImageLoader>(opts.image_cache_bytes);
   return workspace;
@@ -292,7 +311,8 @@ ImageRGB Workspace::LoadView(size_t view) const {
                        SizeText(camera.width, camera.height));
     }
     if (camera.HasDistortion()) {
-      rgb = WarpImage(rgb, *loader_->Map(camera, UndistortCamera(camera)));
+      rgb = WarpImage(
+          rgb, *loader_->Map(camera, pinhole_cameras_.at(camera.camera_id)));
     }
   }
   if (rgb.size() != target_size) {

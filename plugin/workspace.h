@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstddef>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -85,6 +86,8 @@ class Workspace {
   std::vector<image_t> views_;
   // Render cameras per view, computed at Open.
   std::vector<RenderCamera> view_cameras_;
+  // Per camera id: the pinhole camera it is rendered with (full size).
+  std::map<camera_t, Camera> pinhole_cameras_;
   bool undistorted_ = false;
   std::unique_ptr<ImageLoader> loader_;
 };

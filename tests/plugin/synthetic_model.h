@@ -56,10 +56,14 @@ inline std::vector<double> ExampleCameraParams(int model_id, int width,
 struct SyntheticModelOptions {
   // One camera per entry, with this COLMAP model id.
   std::vector<int> model_ids = {1};
+  // Images on a ring of radius 4 around the origin, looking at it.
   int num_images = 6;
+  // Candidate points in [-2.5, 2.5]^3; those seen by < 2 images are dropped.
   int num_points = 150;
+  // Image size of every camera.
   int width = 64;
   int height = 48;
+  // Seeds colours, positions and record order.
   uint32_t seed = 1;
 };
 

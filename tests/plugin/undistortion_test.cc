@@ -139,6 +139,35 @@ TEST_F(ColmapUndistorter, SamePixelsAsColmap) {
   }
 }
 
+TEST_F(ColmapUndistorter, DownscaleAppliesAfterUndistortion) {
+  WorkspaceOptions options;
+  options.workspace_path = dir_.path();
+  const Workspace full = Workspace::Open(options);
+  options.downscale = 2;
+  const Workspace half = Workspace::Open(options);
+  for (size_t view = 0; view < full.NumViews(); ++view) {
+    const RenderCamera big = full.ViewCamera(view);
+    const RenderCamera small = half.ViewCamera(view);
+    EXPECT_EQ(small.width, std::lround(big.width / 2.0));
+    EXPECT_NEAR(small.fx, big.fx * small.width / big.width, 1e-12);
+    const ImageRGB full_image = full.LoadView(view);
+    cv::Mat full_mat(full_image.height, full_image.width, CV_32FC3,
+                     const_cast<float*>(full_image.data.data()));
+    cv::Mat expected;
+    cv::resize(full_mat, expected, cv::Size(small.width, small.height), 0, 0,
+               cv::INTER_AREA);
+    const ImageRGB half_image = half.LoadView(view);
+    ASSERT_EQ(half_image.width, expected.cols);
+    ASSERT_EQ(half_image.height, expected.rows);
+    for (int y = 0; y < expected.rows; y += 5) {
+      for (int x = 0; x < expected.cols; x += 5) {
+        EXPECT_NEAR(half_image.At(x, y)[1], expected.at<cv::Vec3f>(y, x)[1],
+                    1e-5);
+      }
+    }
+  }
+}
+
 TEST_F(ColmapUndistorter, WorkspaceCanDelegateToColmap) {
   WorkspaceOptions options;
   options.workspace_path = dir_.path();
