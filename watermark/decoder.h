@@ -44,11 +44,15 @@ class Decoder {
   // Runs the forward pass unless `image` is the cached input.
   void ForwardIfNeeded(const ImageRGB& image);
 
+  // The model when loaded from a file (null when wrapped).
   std::unique_ptr<HiddenModel> owned_;
+  // The model in use.
   HiddenModel* model_ = nullptr;
-  // Network input (NCHW, [-1,1]) of the last forward pass and its logits.
+  // Network input (NCHW, [-1,1]) of the last forward pass, and gradients.
   Tensor input_, dlogits_, dinput_;
+  // The image of the last forward pass (HWC) and its logits.
   std::vector<float> cached_pixels_, logits_;
+  // True once a forward pass has run.
   bool has_forward_ = false;
 };
 

@@ -76,11 +76,14 @@ std::string FormatValidation(const ValidationResult& result);
 
 // Figures of one training step.
 struct StepResult {
+  // Mean BCE of the step, encoder PSNR (dB) and bit accuracy (0..1).
   double bce = 0, psnr = 0, accuracy = 0;
 };
 
 // Reusable buffers of TrainStep.
 struct StepBuffers {
+  // Decoder input, gradients of logits, of the decoder input, of the
+  // watermarked image (total) and of its MSE term.
   Tensor noised, dlogits, dnoised, dimage, dmse;
 };
 

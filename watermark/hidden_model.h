@@ -16,9 +16,11 @@
 namespace watergs {
 
 struct HiddenModel {
+  // Architecture of both networks.
   HiddenConfig config;
   // Null in a decoder-only file.
   std::unique_ptr<HiddenEncoder> encoder;
+  // Always present.
   std::unique_ptr<HiddenDecoder> decoder;
 
   // Randomly initialised networks (PyTorch's default initialisation).

@@ -38,10 +38,12 @@ class ConvBnRelu {
                 bool training);
   const Tensor& output() const { return out_; }
   void CollectParameters(std::vector<Parameter*>* out);
+  // The block's layers.
   Conv2d conv;
   BatchNorm2d bn;
 
  private:
+  // Convolution output, block output (after ReLU), gradient at conv output.
   Tensor conv_out_, out_, dconv_;
 };
 
@@ -62,10 +64,15 @@ class HiddenEncoder {
 
  private:
   HiddenConfig config_;
+  // Feature blocks on the cover.
   std::vector<ConvBnRelu> blocks_;
+  // Block on [message planes, features, cover].
   ConvBnRelu after_concat_;
+  // 1x1 convolution to the 3-channel residual.
   Conv2d final_;
+  // Input of the last Forward (owned by the caller).
   const Tensor* cover_ = nullptr;
+  // Activations of the last Forward and gradient scratch.
   Tensor concat_, residual_, watermarked_, dconcat_, dblock_, dblock_in_;
 };
 
@@ -85,10 +92,14 @@ class HiddenDecoder {
 
  private:
   HiddenConfig config_;
+  // decoder_blocks feature blocks, then the L-channel block.
   std::vector<ConvBnRelu> blocks_;
+  // Linear(L, L) after global average pooling.
   Linear linear_;
+  // Input of the last Forward (owned by the caller).
   const Tensor* image_ = nullptr;
-  Tensor pooled_, logits_, dpooled_, dlast_, da_, db_;
+  // Activations of the last Forward and gradient scratch.
+  Tensor pooled_, logits_, dpooled_, da_, db_;
 };
 
 }  // namespace watergs

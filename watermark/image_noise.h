@@ -44,6 +44,7 @@ class ImageNoise {
 
  private:
   NoiseStrengths strengths_;
+  // Layer applied by the last Forward.
   NoiseKind kind_ = NoiseKind::kIdentity;
   // Input shape of the last Forward.
   int n_ = 0, h_ = 0, w_ = 0;

@@ -22,9 +22,11 @@ namespace watergs {
 
 // One stored tensor.
 struct TensorRecord {
+  // Parameter name, e.g. "decoder.block0.conv.weight".
   std::string name;
   // Dimensions, outermost first.
   std::vector<int> shape;
+  // prod(shape) values, row-major.
   std::vector<float> values;
 };
 
@@ -33,6 +35,7 @@ struct NetworkFile {
   std::string kind;
   // Integer facts (architecture, training counters), in file order.
   std::vector<std::pair<std::string, int64_t>> meta;
+  // Weights and buffers, in file order.
   std::vector<TensorRecord> tensors;
 
   // Value of `key`; throws Error("<path>: missing field key") if absent.

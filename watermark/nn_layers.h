@@ -73,7 +73,9 @@ class BatchNorm2d {
 
   // gamma, beta [C]; running_mean, running_var [C] (buffers).
   Parameter gamma, beta, running_mean, running_var;
+  // Running-statistics update rate (PyTorch's momentum).
   float momentum = 0.1f;
+  // Added to the variance.
   float eps = 1e-5f;
 
  private:
@@ -126,6 +128,7 @@ class Adam {
   void ZeroGrad();
   // One update from the accumulated gradients.
   void Step();
+  // Step size.
   float learning_rate;
   // Steps taken (for bias correction); first and second moments per param.
   int64_t step = 0;
