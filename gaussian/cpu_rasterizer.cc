@@ -92,7 +92,9 @@ uint8_t ShadeSplat(const GaussianModel& model, size_t i, int degree,
 size_t CpuRenderContext::Bytes() const {
   return sizeof(*this) + splat_ids.capacity() * sizeof(uint32_t) +
          color_clamped.capacity() + splats.capacity() * sizeof(Splat) +
-         (bins.offsets.capacity() + bins.ids.capacity()) * sizeof(uint32_t) +
+         (bins.offsets.capacity() + bins.ids.capacity() +
+          bins.splat_offsets.capacity() + bins.entries.capacity()) *
+             sizeof(uint32_t) +
          blend.final_T.capacity() * sizeof(float) +
          blend.n_contrib.capacity() * sizeof(uint32_t) + visible.capacity();
 }

@@ -3,8 +3,6 @@
 // with per-pixel state in stack arrays and the 16-pixel row loop vectorised.
 #include "gaussian/rasterize_backward.h"
 
-#include <omp.h>
-
 #include <algorithm>
 
 namespace watergs {
@@ -55,9 +53,12 @@ int LoadTile(int tx, int ty, const std::array<float, 3>& bg,
   return max_last;
 }
 
-// Gradient sums of one splat over a tile, one lane per column.
+// Gradient sums of one splat over a tile, one lane per column. With
+// P = dL/dpower: p_y = sum P dy, p_yy = sum P dy^2, p_x = sum P dx,
+// p_xy = sum P dx dy, p_xx = sum P dx^2; the mean and conic gradients are
+// combinations of these, formed once per splat instead of per row.
 struct RowGrads {
-  RowF mx{}, my{}, a{}, b{}, c{}, op{}, rgb[3] = {};
+  RowF p_y{}, p_yy{}, p_x{}, p_xy{}, p_xx{}, op{}, rgb[3] = {};
 };
 
 // One splat over one tile row, back to front (Inria's recurrence).
@@ -88,14 +89,16 @@ inline void BackwardRow(const Splat& s, int j, const RowF& dx, float dy, int r,
   const RowF dL_draw = valid & (raw < kMaxAlpha) ? dL_dalpha : RowF{};
   const RowF dL_dpower = dL_draw * raw;
   g->op += f.G * dL_draw;
-  g->mx += dL_dpower * (s.conic_a * dx + s.conic_b * dy);
-  g->my += dL_dpower * (s.conic_c * dy + s.conic_b * dx);
-  g->a += dL_dpower * (-0.5f * dx * dx);
-  g->b += dL_dpower * (-dx * dy);
-  g->c += dL_dpower * (-0.5f * dy * dy);
+  const RowF px = dL_dpower * dx;
+  g->p_y += dL_dpower * dy;
+  g->p_yy += dL_dpower * (dy * dy);
+  g->p_x += px;
+  g->p_xy += px * dy;
+  g->p_xx += px * dx;
 }
 
-// Walks one tile back to front, adding splat gradients into `out`.
+// Walks one tile back to front; out[j] receives the gradient of list entry j
+// (entries that never contribute keep their zero).
 void BackwardTile(const std::vector<Splat>& splats, const uint32_t* list,
                   int tx, int ty, const std::array<float, 3>& bg,
                   const BlendState& state, const ImageRGB& grad_image,
@@ -118,11 +121,16 @@ void BackwardTile(const std::vector<Splat>& splats, const uint32_t* list,
       if (!RowReachesTile(s, dy, base_x)) continue;
       BackwardRow(s, j, dx, dy, r, st, &g);
     }
-    SplatGrad& o = out[list[j]];
-    o.mean_x += RowSum(g.mx), o.mean_y += RowSum(g.my);
-    o.conic_a += RowSum(g.a), o.conic_b += RowSum(g.b);
-    o.conic_c += RowSum(g.c), o.opacity += RowSum(g.op);
-    for (int ch = 0; ch < 3; ++ch) o.color[ch] += RowSum(g.rgb[ch]);
+    SplatGrad& o = out[j];
+    // power = -0.5 (a dx^2 + c dy^2) - b dx dy, dx = x - mean_x.
+    const float p_y = RowSum(g.p_y), p_x = RowSum(g.p_x);
+    o.mean_x = s.conic_a * p_x + s.conic_b * p_y;
+    o.mean_y = s.conic_c * p_y + s.conic_b * p_x;
+    o.conic_a = -0.5f * RowSum(g.p_xx);
+    o.conic_b = -RowSum(g.p_xy);
+    o.conic_c = -0.5f * RowSum(g.p_yy);
+    o.opacity = RowSum(g.op);
+    for (int ch = 0; ch < 3; ++ch) o.color[ch] = RowSum(g.rgb[ch]);
   }
 }
 
@@ -132,38 +140,32 @@ void RasterizeBackward(const std::vector<Splat>& splats, const TileBins& bins,
                        const std::array<float, 3>& background,
                        const BlendState& state, const ImageRGB& grad_image,
                        std::vector<SplatGrad>* grads) {
-  const size_t n = splats.size();
-  const int threads = omp_get_max_threads();
-  // Thread 0 writes straight into `grads`; the others into scratch buffers.
-  grads->assign(n, SplatGrad());
-  std::vector<std::vector<SplatGrad>> scratch(std::max(0, threads - 1));
+  // One gradient slot per (tile, splat) entry: tiles can then be scheduled
+  // dynamically, and the per-splat sums below run in a fixed order, so the
+  // result does not depend on timing or on the thread count.
+  std::vector<SplatGrad> entry_grads(bins.ids.size());
   const int range_w = bins.range.x1 - bins.range.x0;
   const int num_tiles = bins.NumTiles();
-#pragma omp parallel num_threads(threads)
+#pragma omp parallel
   {
-    const int tid = omp_get_thread_num();
-    SplatGrad* out = grads->data();
-    if (tid > 0) {
-      scratch[tid - 1].assign(n, SplatGrad());
-      out = scratch[tid - 1].data();
-    }
     TileState st;
-    // Static round-robin: which thread sums which tile is fixed, so the
-    // result does not depend on timing.
-#pragma omp for schedule(static, 1)
+#pragma omp for schedule(dynamic, 1)
     for (int k = 0; k < num_tiles; ++k) {
       const int tx = bins.range.x0 + k % range_w;
       const int ty = bins.range.y0 + k / range_w;
       BackwardTile(splats, bins.ids.data() + bins.offsets[k], tx, ty,
-                   background, state, grad_image, &st, out);
+                   background, state, grad_image, &st,
+                   entry_grads.data() + bins.offsets[k]);
     }
   }
-  if (scratch.empty()) return;
+  const size_t n = splats.size();
+  grads->assign(n, SplatGrad());
 #pragma omp parallel for schedule(static)
   for (size_t i = 0; i < n; ++i) {
     SplatGrad& g = (*grads)[i];
-    for (const std::vector<SplatGrad>& buf : scratch) {
-      const SplatGrad& b = buf[i];
+    for (uint32_t e = bins.splat_offsets[i]; e < bins.splat_offsets[i + 1];
+         ++e) {
+      const SplatGrad& b = entry_grads[bins.entries[e]];
       g.mean_x += b.mean_x, g.mean_y += b.mean_y;
       g.conic_a += b.conic_a, g.conic_b += b.conic_b, g.conic_c += b.conic_c;
       g.opacity += b.opacity;

@@ -1,7 +1,8 @@
 // Backward of the tile blending (Inria's back-to-front walk per pixel):
 // dL/d(image) to per-splat gradients of the 2D mean, conic, opacity and
-// colour. Each thread accumulates into its own buffer; buffers are summed in
-// thread order afterwards, so results are deterministic for a thread count.
+// colour. Each (tile, splat) entry gets its own gradient slot and the slots
+// are summed per splat in tile order afterwards, so results are
+// deterministic whatever the thread count and schedule.
 #pragma once
 
 #include <array>

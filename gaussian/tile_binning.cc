@@ -41,15 +41,22 @@ void BinSplats(const std::vector<TileRange>& splat_tiles,
   }
   for (int k = 0; k < num_tiles; ++k) offsets[k + 1] += offsets[k];
   bins->ids.resize(offsets[num_tiles]);
+  bins->entries.resize(offsets[num_tiles]);
+  bins->splat_offsets.resize(splat_tiles.size() + 1);
+  bins->splat_offsets[0] = 0;
   std::vector<uint32_t> cursor(offsets.begin(), offsets.end() - 1);
+  uint32_t entry = 0;
   for (size_t i = 0; i < splat_tiles.size(); ++i) {
     const TileRange& t = splat_tiles[i];
     for (int ty = t.y0; ty < t.y1; ++ty) {
       uint32_t* row = &cursor[(ty - range.y0) * range_w];
       for (int tx = t.x0; tx < t.x1; ++tx) {
-        bins->ids[row[tx - range.x0]++] = static_cast<uint32_t>(i);
+        const uint32_t pos = row[tx - range.x0]++;
+        bins->ids[pos] = static_cast<uint32_t>(i);
+        bins->entries[entry++] = pos;
       }
     }
+    bins->splat_offsets[i + 1] = entry;
   }
 }
 

@@ -19,6 +19,10 @@ struct TileBins {
   std::vector<uint32_t> offsets;
   // Splat indexes, increasing within a list (splats are depth-sorted).
   std::vector<uint32_t> ids;
+  // Splat-major view of the same lists: splat i sits at positions
+  // entries[splat_offsets[i]..splat_offsets[i+1]) of `ids`, in tile order
+  // (the backward pass sums per-entry gradients in this fixed order).
+  std::vector<uint32_t> splat_offsets, entries;
   // Number of tiles in the range.
   int NumTiles() const { return (range.x1 - range.x0) * (range.y1 - range.y0); }
 };

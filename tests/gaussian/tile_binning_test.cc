@@ -38,6 +38,23 @@ TEST(TileBinning, ListsMatchBruteForceInSplatOrder) {
   }
   EXPECT_EQ(bins.ids.size(), total);
   EXPECT_GT(total, 100u);
+  // The splat-major index visits every entry once, each splat's in tile order.
+  ASSERT_EQ(bins.splat_offsets.size(), splats.size() + 1);
+  std::vector<int> seen(bins.ids.size(), 0);
+  for (size_t i = 0; i < splats.size(); ++i) {
+    const TileRange& t = splats[i];
+    const int area = t.empty() ? 0 : (t.x1 - t.x0) * (t.y1 - t.y0);
+    ASSERT_EQ(bins.splat_offsets[i + 1] - bins.splat_offsets[i], area);
+    for (uint32_t e = bins.splat_offsets[i]; e < bins.splat_offsets[i + 1];
+         ++e) {
+      EXPECT_EQ(bins.ids[bins.entries[e]], i);
+      if (e > bins.splat_offsets[i]) {
+        EXPECT_GT(bins.entries[e], bins.entries[e - 1]);
+      }
+      ++seen[bins.entries[e]];
+    }
+  }
+  for (int count : seen) EXPECT_EQ(count, 1);
 }
 
 TEST(TileBinning, TilesCoveringRect) {
