@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "gaussian/error.h"
 
@@ -16,6 +17,7 @@ constexpr ParamGroup kGroups[kNumParamGroups] = {
 
 // Gradients beyond this are clamped so that g * g stays finite in float.
 constexpr float kMaxGradMagnitude = 1e18f;
+constexpr float kFloatMax = std::numeric_limits<float>::max();
 
 template <typename V>
 void FilterRows(V& v, const std::vector<bool>& keep, size_t stride) {
@@ -267,31 +269,45 @@ size_t Adam::StepGroup(ParamGroup group, const std::vector<float>& grad,
   float* m = s.exp_avg.data();
   float* v = s.exp_avg_sq.data();
   const float* gr = grad.data();
-  const int64_t n = static_cast<int64_t>(num_gaussians_);
-  size_t rejected = 0;
-#pragma omp parallel for schedule(static) reduction(+ : rejected) \
-    if (n * stride > 32768)
-  for (int64_t i = 0; i < n; ++i) {
-    if (use_mask && !mask[i]) continue;
-    for (int k = 0; k < stride; ++k) {
-      const size_t j = static_cast<size_t>(i) * stride + k;
-      float g = gr[j];
-      if (!std::isfinite(g)) {
-        g = 0.f;
-        ++rejected;
-      }
-      g = std::clamp(g, -kMaxGradMagnitude, kMaxGradMagnitude);
+  // Values [begin, end): branch-free so that it vectorises; returns the
+  // number of rejected values.
+  auto update = [=](size_t begin, size_t end) {
+    size_t bad = 0;
+#pragma omp simd reduction(+ : bad)
+    for (size_t j = begin; j < end; ++j) {
+      const float raw = gr[j];
+      const bool finite_grad = std::fabs(raw) <= kFloatMax;  // NaN: false
+      const float g = finite_grad ? std::min(std::max(raw, -kMaxGradMagnitude),
+                                             kMaxGradMagnitude)
+                                  : 0.f;
       const float new_m = m[j] + w1 * (g - m[j]);
       const float new_v = v[j] * beta2 + w2 * g * g;
       const float denom = std::sqrt(new_v) / bias2_sqrt + eps;
       const float new_p = p[j] - step_size * (new_m / denom);
-      if (!std::isfinite(new_p) || !std::isfinite(new_v)) {
-        ++rejected;
-        continue;
-      }
-      m[j] = new_m;
-      v[j] = new_v;
-      p[j] = new_p;
+      const bool ok = std::fabs(new_p) <= kFloatMax && new_v <= kFloatMax;
+      bad += (finite_grad ? 0 : 1) + (ok ? 0 : 1);
+      m[j] = ok ? new_m : m[j];
+      v[j] = ok ? new_v : v[j];
+      p[j] = ok ? new_p : p[j];
+    }
+    return bad;
+  };
+  const int64_t n = static_cast<int64_t>(num_gaussians_);
+  size_t rejected = 0;
+  if (use_mask) {
+#pragma omp parallel for schedule(static) reduction(+ : rejected) \
+    if (n * stride > 32768)
+    for (int64_t i = 0; i < n; ++i) {
+      if (mask[i]) rejected += update(i * stride, (i + 1) * stride);
+    }
+  } else {
+    constexpr int64_t kBlock = 4096;
+    const int64_t total = n * stride;
+    const int64_t blocks = (total + kBlock - 1) / kBlock;
+#pragma omp parallel for schedule(static) reduction(+ : rejected) \
+    if (total > 32768)
+    for (int64_t b = 0; b < blocks; ++b) {
+      rejected += update(b * kBlock, std::min(total, (b + 1) * kBlock));
     }
   }
   return rejected;
