@@ -5,6 +5,7 @@
 // differences see the same smooth piece that the backward differentiates
 // instead of jumps of ~1/255 where a pixel crosses the cut-off.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -200,6 +201,38 @@ TEST(RasterizerGradient, DensificationStatisticIsMeanGradientNorm) {
     checked += norm > 1e-3;
   }
   EXPECT_GT(checked, 10);
+}
+
+TEST(RasterizerGradient, SameResultForAnyThreadCount) {
+  const RenderCamera cam = RandomCamera(90, 70, 14);
+  SceneSpec spec;
+  spec.count = 200;
+  const GaussianModel model = RandomScene(cam, spec, 15);
+  auto run = [&](int threads, ImageRGB* image, GaussianGradients* grads) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    auto rasterizer = MakeCpuRasterizer();
+    std::unique_ptr<RenderContext> context;
+    rasterizer->Forward(model, cam, RenderOptions(), image, &context);
+    ImageRGB grad(image->width, image->height);
+    for (size_t k = 0; k < grad.data.size(); ++k) {
+      grad.data[k] = std::sin(0.37f * k);
+    }
+    rasterizer->Backward(model, *context, grad, grads);
+    omp_set_num_threads(saved);
+  };
+  ImageRGB image1, image3;
+  GaussianGradients grads1, grads3;
+  run(1, &image1, &grads1);
+  run(3, &image3, &grads3);
+  EXPECT_EQ(image1.data, image3.data);
+  EXPECT_EQ(grads1.means, grads3.means);
+  EXPECT_EQ(grads1.log_scales, grads3.log_scales);
+  EXPECT_EQ(grads1.quats, grads3.quats);
+  EXPECT_EQ(grads1.opacity_logits, grads3.opacity_logits);
+  EXPECT_EQ(grads1.sh_dc, grads3.sh_dc);
+  EXPECT_EQ(grads1.sh_rest, grads3.sh_rest);
+  EXPECT_EQ(grads1.mean2d_grad_norm, grads3.mean2d_grad_norm);
 }
 
 }  // namespace
