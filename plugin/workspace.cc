@@ -10,6 +10,7 @@
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <tuple>
 #include <unordered_map>
 
 #include "gaussian/error.h"
@@ -50,11 +51,11 @@ class ImageLoader {
     entries_[view] = {image, order_.begin()};
     used_ += bytes;
   }
-  // Warp map from `source` to `target`, computed once per camera id.
+  // Warp map from `source` to `target`, computed once per source camera.
   std::shared_ptr<const WarpMap> Map(const Camera& source,
                                      const Camera& target) {
     std::lock_guard<std::mutex> lock(mutex_);
-    auto& map = maps_[source.camera_id];
+    auto& map = maps_[{source.camera_id, source.width, source.height}];
     if (!map) {
       map = std::make_shared<const WarpMap>(ComputeWarpMap(source, target));
     }
@@ -73,7 +74,11 @@ class ImageLoader {
   size_t used_ = 0;
   std::list<size_t> order_;
   std::unordered_map<size_t, Entry> entries_;
-  std::unordered_map<camera_t, std::shared_ptr<const WarpMap>> maps_;
+  // Keyed by source camera id and size (images_<k> files may differ by a
+  // pixel).
+  std::map<std::tuple<camera_t, uint64_t, uint64_t>,
+           std::shared_ptr<const WarpMap>>
+      maps_;
 };
 
 namespace {
@@ -215,6 +220,32 @@ RenderCamera MakeRenderCamera(const Image& image, const Camera& pinhole,
   return camera;
 }
 
+// `camera` for images resized to width x height: focal lengths and
+// principal point scale with the size; distortion (on normalized
+// coordinates) is unchanged.
+Camera RescaleCamera(const Camera& camera, int width, int height) {
+  Camera scaled = camera;
+  const double sx = width / double(camera.width);
+  const double sy = height / double(camera.height);
+  const bool single = CameraModelHasSingleFocalLength(camera.model_id);
+  scaled.width = width;
+  scaled.height = height;
+  scaled.params[0] *= single ? 0.5 * (sx + sy) : sx;
+  if (!single) scaled.params[1] *= sy;
+  scaled.params[single ? 1 : 2] *= sx;
+  scaled.params[single ? 2 : 3] *= sy;
+  return scaled;
+}
+
+// The PINHOLE camera of a render camera.
+Camera PinholeOf(const RenderCamera& render, camera_t camera_id) {
+  return Camera{camera_id,
+                PinholeCameraModel::kModelId,
+                uint64_t(render.width),
+                uint64_t(render.height),
+                {render.fx, render.fy, render.cx, render.cy}};
+}
+
 }  // namespace
 
 // Fills default paths, reads the model (through colmap image_undistorter if
@@ -274,47 +305,51 @@ RenderCamera Workspace::ViewCamera(size_t view) const {
   return view_cameras_[view];
 }
 
-// Pinhole cameras at downscale k read <images>_k/<name> when that folder
-// exists (within one pixel of the expected size, resized if not exact);
-// otherwise the full image is decoded, undistorted if needed, then resized
-// with INTER_AREA. Distorted cameras always start from the full image.
+// At downscale k, <images>_k/<name> is read when that folder exists (its
+// size within one pixel of round(camera size / k)); otherwise the full image
+// is decoded. Distorted images are then warped to the view's pinhole camera
+// (from an images_k file, through the COLMAP camera rescaled to its size);
+// whatever is not yet at the view size is resized with INTER_AREA.
 ImageRGB Workspace::LoadView(size_t view) const {
   ImageRGB cached;
   if (loader_->Find(view, &cached)) return cached;
   const Image& image = ViewImage(view);
   const Camera& camera = reconstruction_.GetCamera(image.camera_id);
   const RenderCamera& target = view_cameras_[view];
-  const cv::Size target_size(target.width, target.height);
   const std::string downscaled_folder =
       DownscaledImagePath(options_.image_path, options_.downscale);
-  cv::Mat rgb;
-  if (options_.downscale > 1 && !camera.HasDistortion() &&
-      fs::is_directory(downscaled_folder)) {
-    const std::string path =
-        (fs::path(downscaled_folder) / image.name).string();
-    rgb = DecodeImage(path);
-    if (std::abs(rgb.cols - target.width) > 1 ||
-        std::abs(rgb.rows - target.height) > 1) {
-      FailAt(path, "is " + SizeText(rgb.cols, rgb.rows) + " but camera " +
-                       std::to_string(camera.camera_id) + " at downscale " +
-                       std::to_string(options_.downscale) + " is " +
-                       SizeText(target.width, target.height));
-    }
-  } else {
-    const std::string path =
-        (fs::path(options_.image_path) / image.name).string();
-    rgb = DecodeImage(path);
-    if (uint64_t(rgb.cols) != camera.width ||
-        uint64_t(rgb.rows) != camera.height) {
-      FailAt(path, "is " + SizeText(rgb.cols, rgb.rows) + " but its camera " +
-                       std::to_string(camera.camera_id) + " is " +
-                       SizeText(camera.width, camera.height));
-    }
-    if (camera.HasDistortion()) {
-      rgb = WarpImage(
-          rgb, *loader_->Map(camera, pinhole_cameras_.at(camera.camera_id)));
-    }
+  const bool from_downscaled =
+      options_.downscale > 1 && fs::is_directory(downscaled_folder);
+  const std::string path =
+      (fs::path(from_downscaled ? downscaled_folder : options_.image_path) /
+       image.name)
+          .string();
+  cv::Mat rgb = DecodeImage(path);
+  const long expected_width =
+      from_downscaled ? std::lround(camera.width / double(options_.downscale))
+                      : long(camera.width);
+  const long expected_height =
+      from_downscaled ? std::lround(camera.height / double(options_.downscale))
+                      : long(camera.height);
+  const long tolerance = from_downscaled ? 1 : 0;
+  if (std::abs(rgb.cols - expected_width) > tolerance ||
+      std::abs(rgb.rows - expected_height) > tolerance) {
+    FailAt(path, "is " + SizeText(rgb.cols, rgb.rows) + " but its camera " +
+                     std::to_string(camera.camera_id) +
+                     (from_downscaled ? " at downscale " +
+                                            std::to_string(options_.downscale)
+                                      : std::string()) +
+                     " is " + SizeText(expected_width, expected_height));
   }
+  if (camera.HasDistortion()) {
+    const Camera source =
+        from_downscaled ? RescaleCamera(camera, rgb.cols, rgb.rows) : camera;
+    const Camera pinhole = from_downscaled
+                               ? PinholeOf(target, camera.camera_id)
+                               : pinhole_cameras_.at(camera.camera_id);
+    rgb = WarpImage(rgb, *loader_->Map(source, pinhole));
+  }
+  const cv::Size target_size(target.width, target.height);
   if (rgb.size() != target_size) {
     cv::resize(rgb, rgb, target_size, 0, 0, cv::INTER_AREA);
   }

@@ -168,6 +168,48 @@ TEST_F(ColmapUndistorter, DownscaleAppliesAfterUndistortion) {
   }
 }
 
+TEST_F(ColmapUndistorter, DistortedImagesFromImagesKFolder) {
+  // images_2 holding the INTER_AREA-halved originals must give nearly the
+  // views computed from the full images.
+  fs::create_directories(dir_ / "images_2");
+  for (const auto& [id, image] : model_.Images()) {
+    cv::Mat half;
+    cv::resize(cv::imread(dir_ / ("images/" + image.name)), half,
+               cv::Size(48, 36), 0, 0, cv::INTER_AREA);
+    cv::imwrite(dir_ / ("images_2/" + image.name), half);
+  }
+  WorkspaceOptions options;
+  options.workspace_path = dir_.path();
+  options.downscale = 2;
+  const Workspace workspace = Workspace::Open(options);
+  fs::rename(dir_ / "images_2", dir_ / "moved_away");
+  const Workspace reference = Workspace::Open(options);
+  fs::rename(dir_ / "moved_away", dir_ / "images_2");
+  for (size_t view = 0; view < workspace.NumViews(); ++view) {
+    const ImageRGB ours = workspace.LoadView(view);
+    const ImageRGB expected = reference.LoadView(view);
+    ASSERT_EQ(ours.width, expected.width);
+    ASSERT_EQ(ours.height, expected.height);
+    double sum = 0;
+    int count = 0;
+    for (int y = 2; y < ours.height - 2; ++y) {
+      for (int x = 2; x < ours.width - 2; ++x) {
+        for (int c = 0; c < 3; ++c) {
+          sum += std::abs(ours.At(x, y)[c] - expected.At(x, y)[c]);
+          ++count;
+        }
+      }
+    }
+    EXPECT_LT(sum / count, 0.03) << workspace.ViewName(view);
+  }
+  // And the images_2 file is what is read: a flat grey one stays grey.
+  const std::string name = workspace.ViewName(3);
+  cv::imwrite(dir_ / ("images_2/" + name),
+              cv::Mat(36, 48, CV_8UC3, cv::Scalar(51, 51, 51)));
+  const ImageRGB grey = Workspace::Open(options).LoadView(3);
+  EXPECT_NEAR(grey.At(grey.width / 2, grey.height / 2)[0], 0.2f, 1e-6);
+}
+
 TEST_F(ColmapUndistorter, WorkspaceCanDelegateToColmap) {
   WorkspaceOptions options;
   options.workspace_path = dir_.path();
