@@ -131,6 +131,41 @@ TEST_F(ColmapCompat, ModelWithoutPoints) {
   Check(options, ModelFormat::kBinary);
 }
 
+// Hand-written text: unnormalized quaternions (COLMAP normalizes on read and
+// on write), images without keypoints, a point without error.
+TEST_F(ColmapCompat, HandWrittenTextConvertsLikeColmap) {
+  const std::string input = dir_ / "hand";
+  fs::create_directories(input);
+  AtomicWriteFile(input + "/cameras.txt", "1 FOV 10 8 9 9.5 5 4 0.7\n");
+  AtomicWriteFile(input + "/images.txt",
+                  "3 0.9 0.1 0.2 0.3 0 0 1 1 x.png\n\n"
+                  "4 0.3333 0.7777 0.123456789 0.987654321 1e-3 0 1 1 y.png\n"
+                  "1.25 2.5 8 3 4 -1\n"
+                  "5 2 3 5 7 0 0 1 1 z.png\n\n");
+  AtomicWriteFile(input + "/points3D.txt", "8 0.1 0.2 3 1 2 3 -1 4 0\n");
+  for (const char* type : {"TXT", "BIN"}) {
+    const std::string theirs = dir_ / ("colmap_" + std::string(type));
+    const std::string ours = dir_ / ("ours_" + std::string(type));
+    fs::create_directories(theirs);
+    ASSERT_EQ(testing::RunCommand(Colmap() + " model_converter --input_path " +
+                                  input + " --output_path " + theirs +
+                                  " --output_type " + type)
+                  .exit_code,
+              0);
+    ASSERT_EQ(testing::RunCommand(
+                  testing::WatergsBin() + " model_converter --input_path " +
+                  input + " --output_path " + ours + " --output_type " + type)
+                  .exit_code,
+              0);
+    const std::string ext = type[0] == 'T' ? ".txt" : ".bin";
+    for (const char* name : {"cameras", "images", "points3D"}) {
+      EXPECT_EQ(FileText(ours + "/" + name + ext),
+                FileText(theirs + "/" + name + ext))
+          << name << ext;
+    }
+  }
+}
+
 TEST_F(ColmapCompat, ModelInfoStepsIntoWorkspaceSparse0) {
   testing::SyntheticModelOptions options;
   options.model_ids = {8, 3};
