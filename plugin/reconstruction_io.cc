@@ -69,8 +69,14 @@ void CheckCamera(const std::string& path, const std::string& where,
                      CameraModelParamsInfo(camera.model_id) + "), got " +
                      std::to_string(camera.params.size()));
   }
-  if (camera.width == 0 || camera.height == 0) {
-    FailAt(path, where + ": image size must be positive");
+  // Sizes beyond 2^20 pixels a side are corrupt values, and would make
+  // per-pixel work (undistortion, int image sizes) blow up.
+  constexpr uint64_t kMaxImageSide = uint64_t(1) << 20;
+  if (camera.width == 0 || camera.height == 0 || camera.width > kMaxImageSide ||
+      camera.height > kMaxImageSide) {
+    FailAt(path, where + ": implausible image size " +
+                     std::to_string(camera.width) + "x" +
+                     std::to_string(camera.height));
   }
   CheckFinite(path, where, camera.params.data(), expected, "a parameter");
   const double fx = camera.FocalLengthX(), fy = camera.FocalLengthY();

@@ -149,6 +149,13 @@ TEST_F(MalformedModel, NaNAndInfInText) {
   ExpectError("txt", "cameras.txt", "parameter is not finite");
 }
 
+TEST_F(MalformedModel, ImplausibleImageSize) {
+  Patch<uint64_t>("cameras.bin", 8 + 4 + 4, uint64_t(1) << 40);
+  ExpectError("", "cameras.bin", "implausible image size 1099511627776x48");
+  Replace("txt/cameras.txt", "PINHOLE 64 48", "PINHOLE 0 48");
+  ExpectError("txt", "cameras.txt", "implausible image size 0x48");
+}
+
 TEST_F(MalformedModel, UnknownCameraModelIdInBinary) {
   Patch<int32_t>("cameras.bin", 8 + 4, 11);
   ExpectError("", "cameras.bin", "unknown camera model id 11");
