@@ -5,7 +5,7 @@
 # Usage: bash datasets_scripts/make_demo_scene.sh [--variant 1|2] [--debug] [out_dir]
 #   out_dir defaults to datasets_scripts/demo_scene (variant 1, the committed scene) and
 #   datasets_scripts/demo_scene_v2 (variant 2). Writes:
-#     out_dir/images/view_NNN.jpg          JPEG quality 90, no render-date metadata
+#     out_dir/images/view_NNN.jpg          JPEG quality 88, no render-date metadata
 #     out_dir/sparse/0/{cameras,images,points3D}.bin
 #     out_dir/ground_truth/{cameras,images,points3D}.txt   the POV-Ray poses as a COLMAP text model
 #                                                          (world = POV-Ray (x, z, y), z up; match by NAME)
@@ -38,7 +38,7 @@ for tool in povray colmap python3; do
   command -v "$tool" >/dev/null || { echo "make_demo_scene: '$tool' not found (run scripts/install_deps.sh)" >&2; exit 1; }
 done
 
-readonly width=480 height=360 fov_deg=60 jpeg_quality=90
+readonly width=480 height=360 fov_deg=60 jpeg_quality=88
 threads="$(nproc)"
 tools="$script_dir/demo_scene_tools.py"
 start_seconds=$SECONDS
