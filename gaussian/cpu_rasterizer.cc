@@ -235,10 +235,12 @@ void CpuRasterizer::Backward(const GaussianModel& model,
     for (int d = 0; d < 4; ++d) {
       grads->quats[4 * i + d] = static_cast<float>(grad_q[d]);
     }
+    // sqrt rather than hypot: no overflow risk in double, much cheaper.
+    const double gx = grad_mean2d[0], gy = grad_mean2d[1];
     grads->mean2d_grad_norm[i] =
-        static_cast<float>(std::hypot(grad_mean2d[0], grad_mean2d[1]));
+        static_cast<float>(std::sqrt(gx * gx + gy * gy));
     grads->mean2d_grad_norm_ndc[i] = static_cast<float>(
-        std::hypot(grad_mean2d[0] * half_w, grad_mean2d[1] * half_h));
+        std::sqrt(gx * gx * half_w * half_w + gy * gy * half_h * half_h));
   }
 }
 

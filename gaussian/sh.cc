@@ -52,18 +52,22 @@ void ShColorBackward(int degree, const float* dc, const float* rest,
   ShBasis(degree, x, y, z, basis);
   ShBasisGradient(degree, x, y, z, d_dx, d_dy, d_dz);
   const int count = (degree + 1) * (degree + 1);
+  const double g0 = grad_rgb[0], g1 = grad_rgb[1], g2 = grad_rgb[2];
+  grad_dc[0] += static_cast<float>(basis[0] * g0);
+  grad_dc[1] += static_cast<float>(basis[0] * g1);
+  grad_dc[2] += static_cast<float>(basis[0] * g2);
+  // Coefficient-major: one pass over the (K-1) x 3 block.
   double grad_unit[3] = {0, 0, 0};
-  for (int ch = 0; ch < 3; ++ch) {
-    const double g = grad_rgb[ch];
-    if (g == 0) continue;
-    grad_dc[ch] += static_cast<float>(basis[0] * g);
-    for (int k = 1; k < count; ++k) {
-      const double coeff = rest[(k - 1) * 3 + ch];
-      grad_rest[(k - 1) * 3 + ch] += static_cast<float>(basis[k] * g);
-      grad_unit[0] += d_dx[k] * coeff * g;
-      grad_unit[1] += d_dy[k] * coeff * g;
-      grad_unit[2] += d_dz[k] * coeff * g;
-    }
+  for (int k = 1; k < count; ++k) {
+    const float* c = rest + (k - 1) * 3;
+    float* gc = grad_rest + (k - 1) * 3;
+    gc[0] += static_cast<float>(basis[k] * g0);
+    gc[1] += static_cast<float>(basis[k] * g1);
+    gc[2] += static_cast<float>(basis[k] * g2);
+    const double weight = c[0] * g0 + c[1] * g1 + c[2] * g2;
+    grad_unit[0] += d_dx[k] * weight;
+    grad_unit[1] += d_dy[k] * weight;
+    grad_unit[2] += d_dz[k] * weight;
   }
   if (degenerate || degree == 0) return;
   // d(v/|v|)/dv = (I - u u^T) / |v|.
