@@ -86,6 +86,37 @@ bool ProjectForward(const ProjectionCamera& cam, const float* mean,
   return !out->tiles.empty();
 }
 
+bool MayTouchTiles(const ProjectionCamera& cam, const float* mean,
+                   const float* log_scale, const TileRange& range) {
+  const double m[3] = {mean[0], mean[1], mean[2]};
+  double tcam[3];
+  WorldToCamera(cam, m, tcam);
+  const double z = tcam[2];
+  if (!(z >= cam.near_plane) || !(z <= cam.far_plane)) return false;
+  double max_log = kMinLogScale;
+  for (int k = 0; k < 3; ++k) {
+    if (std::isnan(log_scale[k])) return false;
+    max_log = std::max(max_log, ClampLogScale(double(log_scale[k])));
+  }
+  const double limx = kFrustumClampFactor * cam.tan_fovx;
+  const double limy = kFrustumClampFactor * cam.tan_fovy;
+  const double u = std::clamp(tcam[0] / z, -limx, limx);
+  const double v = std::clamp(tcam[1] / z, -limy, limy);
+  // lambda1 <= trace(cov2d) + sqrt(0.1) <= |J|_F^2 s_max^2 + 2 * 0.3 + 0.32.
+  const double jf2 =
+      (cam.fx * cam.fx * (1 + u * u) + cam.fy * cam.fy * (1 + v * v)) / (z * z);
+  const double lambda = jf2 * std::exp(2 * max_log) + 0.92;
+  const double radius =
+      std::min(kMaxRadius, std::ceil(3.0 * std::sqrt(lambda))) + 1;
+  const double px = cam.fx * tcam[0] / z + cam.cx - 0.5;
+  const double py = cam.fy * tcam[1] / z + cam.cy - 0.5;
+  if (!std::isfinite(px) || !std::isfinite(py)) return true;  // Let it decide.
+  return px + radius + kTileSize >= range.x0 * kTileSize &&
+         px - radius - kTileSize <= range.x1 * kTileSize &&
+         py + radius + kTileSize >= range.y0 * kTileSize &&
+         py - radius - kTileSize <= range.y1 * kTileSize;
+}
+
 namespace {
 
 // dL/d(cov2d entries A, B, C) from dL/d(conic a, b, c); conic = inverse.

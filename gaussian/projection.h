@@ -207,6 +207,13 @@ bool ProjectForward(const ProjectionCamera& cam, const float* mean,
                     const float* log_scale, const float* quat,
                     ProjectedGaussian* out);
 
+// Cheap conservative test: false only if ProjectForward would cull the
+// Gaussian or give it tiles outside `range` (bounds the 3-sigma radius by
+// the Frobenius norm of the Jacobian and the largest scale). Lets crop
+// renders skip most of the projection work for Gaussians outside the crop.
+bool MayTouchTiles(const ProjectionCamera& cam, const float* mean,
+                   const float* log_scale, const TileRange& range);
+
 // Backward of ProjectGaussian: given dL/dmean2d (2) and dL/dconic (3, for the
 // scalars a, b, c) adds dL/dmean (3), dL/dlog_scale (3), dL/dquat (4).
 void ProjectBackward(const ProjectionCamera& cam, const float* mean,

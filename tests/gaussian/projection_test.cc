@@ -10,6 +10,7 @@
 #include <cmath>
 #include <random>
 
+#include "gaussian/tile_binning.h"
 #include "tests/gaussian/rasterizer_test_scenes.h"
 
 namespace watergs {
@@ -147,6 +148,39 @@ TEST(Projection, ForwardMatchesPinholeAndCulls) {
   EXPECT_FALSE(ProjectForward(cam, at_near.data(), ls, quat, &p));
   const auto off_screen = world(50.0, 0.0, 2.0);
   EXPECT_FALSE(ProjectForward(cam, off_screen.data(), ls, quat, &p));
+}
+
+TEST(Projection, MayTouchTilesNeverRejectsWhatProjectionKeeps) {
+  int kept = 0, rejected = 0;
+  for (unsigned seed = 0; seed < 4; ++seed) {
+    const RenderCamera rc = testing::RandomCamera(200, 150, seed);
+    const ProjectionCamera cam = MakeProjectionCamera(rc);
+    testing::SceneSpec spec;
+    spec.count = 400;
+    spec.margin = 150;
+    spec.min_scale = 0.001, spec.max_scale = 2.0;
+    const GaussianModel m = testing::RandomScene(rc, spec, 40 + seed);
+    const TileRange ranges[] = {{0, 0, 13, 10}, {3, 2, 5, 4}, {12, 9, 13, 10}};
+    for (const TileRange& range : ranges) {
+      for (size_t i = 0; i < m.size(); ++i) {
+        ProjectedGaussian p;
+        const bool hits =
+            ProjectForward(cam, &m.means[3 * i], &m.log_scales[3 * i],
+                           &m.quats[4 * i], &p) &&
+            !Intersect(p.tiles, range).empty();
+        const bool may =
+            MayTouchTiles(cam, &m.means[3 * i], &m.log_scales[3 * i], range);
+        if (hits) {
+          EXPECT_TRUE(may) << i;
+        }
+        kept += hits;
+        rejected += !may;
+      }
+    }
+  }
+  // Both outcomes occur, so the test exercises the bound.
+  EXPECT_GT(kept, 100);
+  EXPECT_GT(rejected, 100);
 }
 
 }  // namespace
