@@ -161,13 +161,26 @@ Workspace::~Workspace() = default;
 
 namespace {
 
+// The workspace a model folder belongs to: <ws> for <ws>/sparse/<n> and
+// <ws>/sparse, else the model folder's parent.
+fs::path WorkspaceOfModel(const std::string& input_path) {
+  fs::path path = fs::path(input_path).lexically_normal();
+  if (path.filename().empty()) path = path.parent_path();
+  if (path.parent_path().filename() == "sparse") {
+    return path.parent_path().parent_path();
+  }
+  return path.parent_path();
+}
+
 WorkspaceOptions WithDefaults(const WorkspaceOptions& options) {
   WorkspaceOptions filled = options;
   if (filled.workspace_path.empty() && filled.input_path.empty()) {
     Fail("workspace: give --workspace_path or --input_path");
   }
   if (filled.downscale < 1) Fail("workspace: downscale must be >= 1");
-  const fs::path root(filled.workspace_path);
+  const fs::path root = filled.workspace_path.empty()
+                            ? WorkspaceOfModel(filled.input_path)
+                            : fs::path(filled.workspace_path);
   if (filled.image_path.empty()) filled.image_path = (root / "images").string();
   if (filled.undistorted_path.empty()) {
     filled.undistorted_path = (root / "undistorted_watergs").string();

@@ -21,7 +21,8 @@ struct WorkspaceOptions {
   std::string workspace_path;
   // Sparse model folder; default <workspace>/sparse/0, else <workspace>/sparse.
   std::string input_path;
-  // Image folder; default <workspace>/images.
+  // Image folder; default <workspace>/images, where <workspace> is, if not
+  // given, the folder holding the model's sparse/ (or the model's parent).
   std::string image_path;
   // 1, 2, 4, 8: use <image_path>_<k> (e.g. <workspace>/images_4) if it
   // exists, else resize on load (INTER_AREA).

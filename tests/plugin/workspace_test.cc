@@ -124,6 +124,16 @@ TEST(Workspace, PinholeViewsCamerasAndImages) {
   EXPECT_NEAR(workspace.SceneExtent(), 1.1 * max_distance, 1e-6);
 }
 
+TEST(Workspace, InputPathAloneFindsImagesBesideSparse) {
+  testing::TempDir dir("ws_input_only");
+  MakeWorkspace(dir.path(), testing::SyntheticModelOptions{});
+  WorkspaceOptions options;
+  options.input_path = dir / "sparse/0";
+  const Workspace workspace = Workspace::Open(options);
+  EXPECT_EQ(workspace.options().image_path, dir / "images");
+  EXPECT_EQ(workspace.LoadView(0).width, 64);
+}
+
 TEST(Workspace, HeldOutSplitEveryEighthView) {
   testing::TempDir dir("ws_split");
   testing::SyntheticModelOptions options;
