@@ -33,13 +33,17 @@ struct RenderOptions {
 // as GaussianModel, plus what density control needs.
 struct GaussianGradients {
   std::vector<float> means, log_scales, quats, opacity_logits, sh_dc, sh_rest;
-  // Per Gaussian: norm of dL/d(mean2d) in pixels for this view (0 if not
-  // visible), the statistic Inria accumulates for densification.
+  // Per Gaussian: norm |(gx, gy)| of dL/d(mean2d), mean2d in pixels, for
+  // this view (0 if not visible). A threshold t in Inria's units is about
+  // t / (W/2) here for square-ish pixels; prefer mean2d_grad_norm_ndc.
   std::vector<float> mean2d_grad_norm;
-  // Per Gaussian: the same gradient in Inria's NDC units, |(gx W/2, gy H/2)|
-  // with W x H the full frame: compare this one with Inria's 2e-4 threshold.
+  // Per Gaussian: Inria's densification statistic exactly, the same gradient
+  // in NDC units |(gx W/2, gy H/2)|, W x H the full frame even for a crop:
+  // compare this one with Inria's 2e-4 threshold (for the same loss scale,
+  // i.e. a loss averaged over the rendered pixels as Inria's is).
   std::vector<float> mean2d_grad_norm_ndc;
-  // Per Gaussian: 1 if it was visible (radius > 0) in this view.
+  // Per Gaussian: 1 if it was visible in this view: Inria's radius > 0 with
+  // its tile rectangle overlapping the rendered rectangle.
   std::vector<uint8_t> visible;
   // Zero-sized to n Gaussians with sh_rest stride `rest_stride`.
   void Reset(size_t n, int rest_stride);
@@ -60,6 +64,8 @@ class Rasterizer {
                        const RenderOptions& options, ImageRGB* image,
                        std::unique_ptr<RenderContext>* context) = 0;
   // dL/d(image) has the output image's shape; gradients are overwritten.
+  // Exact gradients of the forward pass (the CPU one differs from Inria's
+  // kernel only where alpha is capped at 0.99: zero slope there).
   virtual void Backward(const GaussianModel& model,
                         const RenderContext& context,
                         const ImageRGB& grad_image,
