@@ -16,7 +16,7 @@
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib_download.sh"
 
-split=val
+split="val"
 count=0
 heldout_every=10
 out_dir=""
@@ -32,8 +32,9 @@ while [ $# -gt 0 ]; do
 done
 out_dir="${out_dir:-data/coco}"
 [[ "$count" =~ ^[0-9]+$ ]] || die "--count must be a non-negative integer, got '$count'"
-[[ "$heldout_every" =~ ^[0-9]+$ ]] && [ "$heldout_every" -ge 2 ] \
-  || die "--heldout_every must be an integer >= 2, got '$heldout_every'"
+if ! [[ "$heldout_every" =~ ^[0-9]+$ ]] || [ "$heldout_every" -lt 2 ]; then
+  die "--heldout_every must be an integer >= 2, got '$heldout_every'"
+fi
 case "$split" in
   val) md5=442b8da7639aecaf257c1dceb8ba8c80 ;;
   train) md5=cced6f7f71b7629ddf16f17bbcfab6b2 ;;

@@ -4,8 +4,8 @@
 #   OUT/<scene>/images_2|4|8/           downscaled copies shipped by the dataset (same file names)
 #   OUT/<scene>/sparse/0/               COLMAP model
 #   OUT/<scene>/poses_bounds.npy        kept for other tools
-# 360_v2.zip (about 12 GB): bicycle bonsai counter garden kitchen room stump
-# 360_extra_scenes.zip (about 6 GB, only fetched when flowers or treehill are asked for): flowers treehill
+# 360_v2.zip (several GB; sizes were not verifiable offline): bicycle bonsai counter garden kitchen room stump
+# 360_extra_scenes.zip (only fetched when flowers or treehill are asked for): flowers treehill
 # Convention of the 3DGS paper: outdoor scenes at images_4, indoor at images_2; every 8th image held out.
 #
 # Usage: bash datasets_scripts/download_mipnerf360.sh [OUT_DIR (default data/mipnerf360)] [scene ...]

@@ -2,8 +2,8 @@
 # Downloads the Tanks&Temples scenes train and truck as prepared by the 3D Gaussian Splatting authors
 # (tandt_db.zip, about 650 MB, which also holds Deep Blending's drjohnson and playroom) and lays them out as
 # COLMAP workspaces for watergs:
-#   OUT/train/images/   (301 images, 980x545)    OUT/train/sparse/0/   undistorted PINHOLE model
-#   OUT/truck/images/   (251 images, 979x546)    OUT/truck/sparse/0/
+#   OUT/train/images/   (301 images, about 1K wide)   OUT/train/sparse/0/   undistorted PINHOLE model
+#   OUT/truck/images/   (251 images, about 1K wide)   OUT/truck/sparse/0/
 # No downscaled folders ship with this archive (the images are already about 1K wide); every 8th image is
 # the held-out view. Pass --with-db to also lay out the Deep Blending scenes (drjohnson, playroom).
 #

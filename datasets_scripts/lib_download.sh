@@ -1,3 +1,4 @@
+# shellcheck shell=bash
 # Shared helpers for the download_*.sh scripts (sourced, not run).
 # Downloads resume where they stopped, are checked against a known MD5 where one is published, and
 # land in a cache folder (WATERGS_DOWNLOAD_CACHE, default <out_dir>/.downloads) that survives re-runs.
@@ -87,10 +88,10 @@ count_images() {
 # extension); one that cannot be paired is removed, and the CLI then resizes the full images itself.
 match_downscaled_names() {
   local scene="$1" folder full_names small_names i
-  mapfile -t full_names < <(cd "$scene/images" && ls | LC_ALL=C sort)
+  mapfile -t full_names < <(find "$scene/images" -mindepth 1 -maxdepth 1 -printf '%f\n' | LC_ALL=C sort)
   for folder in "$scene"/images_*; do
     [ -d "$folder" ] || continue
-    mapfile -t small_names < <(cd "$folder" && ls | LC_ALL=C sort)
+    mapfile -t small_names < <(find "$folder" -mindepth 1 -maxdepth 1 -printf '%f\n' | LC_ALL=C sort)
     if [ "${small_names[*]}" == "${full_names[*]}" ]; then
       continue
     fi
@@ -117,7 +118,8 @@ check_colmap_scene() {
     [ -f "$scene/sparse/0/$file.bin" ] || [ -f "$scene/sparse/0/$file.txt" ] \
       || die "$scene/sparse/0/$file.bin (or .txt) is missing"
   done
-  local summary="$(count_images "$scene/images") images"
+  local summary
+  summary="$(count_images "$scene/images") images"
   local folder
   for folder in "$scene"/images_*; do
     [ -d "$folder" ] && summary+=", $(basename "$folder")"
