@@ -437,10 +437,37 @@ void Put(std::string* out, T value) {
   out->append(reinterpret_cast<const char*>(&value), sizeof(T));
 }
 
-// Drops the trailing space COLMAP's writers strip from each line.
-std::string WithoutTrailingSpace(const std::ostringstream& line) {
-  std::string text = line.str();
-  if (!text.empty() && text.back() == ' ') text.pop_back();
+// COLMAP writes numbers through an ostream with precision 17, i.e. as
+// printf's %.17g, which std::to_chars with that precision reproduces
+// exactly (and several times faster). Each Append adds a trailing space,
+// as COLMAP's writers do before stripping the last one of a line.
+void Append(std::string* out, double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value,
+                                    std::chars_format::general, 17);
+  out->append(buffer, result.ptr);
+  out->push_back(' ');
+}
+void Append(std::string* out, uint64_t value) {
+  char buffer[24];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  out->append(buffer, result.ptr);
+  out->push_back(' ');
+}
+void Append(std::string* out, const std::string& text) {
+  out->append(text);
+  out->push_back(' ');
+}
+// Ends a line: the trailing space becomes the newline.
+void EndLine(std::string* out) {
+  if (!out->empty() && out->back() == ' ') out->pop_back();
+  out->push_back('\n');
+}
+// A header number (no trailing space).
+std::string Number(double value) {
+  std::string text;
+  Append(&text, value);
+  text.pop_back();
   return text;
 }
 
@@ -503,75 +530,79 @@ Reconstruction ReadReconstructionText(const std::string& model_path) {
 }
 
 std::string CamerasText(const Reconstruction& reconstruction) {
-  std::ostringstream file;
-  file.precision(17);
-  file << "# Camera list with one line of data per camera:\n"
-       << "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
-       << "# Number of cameras: " << reconstruction.NumCameras() << "\n";
+  std::string file =
+      "# Camera list with one line of data per camera:\n"
+      "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
+      "# Number of cameras: " +
+      std::to_string(reconstruction.NumCameras()) + "\n";
   for (const auto& [id, camera] : reconstruction.Cameras()) {
-    std::ostringstream line;
-    line.precision(17);
-    line << id << " " << camera.ModelName() << " " << camera.width << " "
-         << camera.height << " ";
-    for (const double param : camera.params) line << param << " ";
-    file << WithoutTrailingSpace(line) << "\n";
+    Append(&file, uint64_t(id));
+    Append(&file, camera.ModelName());
+    Append(&file, camera.width);
+    Append(&file, camera.height);
+    for (const double param : camera.params) Append(&file, param);
+    EndLine(&file);
   }
-  return file.str();
+  return file;
 }
 
 std::string ImagesText(const Reconstruction& reconstruction) {
-  std::ostringstream file;
-  file.precision(17);
-  file << "# Image list with two lines of data per image:\n"
-       << "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
-       << "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
-       << "# Number of images: " << reconstruction.NumRegImages()
-       << ", mean observations per image: "
-       << reconstruction.ComputeMeanObservationsPerRegImage() << "\n";
+  std::string file =
+      "# Image list with two lines of data per image:\n"
+      "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
+      "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
+      "# Number of images: " +
+      std::to_string(reconstruction.NumRegImages()) +
+      ", mean observations per image: " +
+      Number(reconstruction.ComputeMeanObservationsPerRegImage()) + "\n";
   for (const auto& [id, image] : reconstruction.Images()) {
     if (!reconstruction.IsImageRegistered(id)) continue;
-    std::ostringstream line;
-    line.precision(17);
+    Append(&file, uint64_t(id));
     const Eigen::Vector4d qvec = NormalizeQuaternion(image.qvec);
-    line << id << " " << qvec(0) << " " << qvec(1) << " " << qvec(2) << " "
-         << qvec(3) << " " << image.tvec(0) << " " << image.tvec(1) << " "
-         << image.tvec(2) << " " << image.camera_id << " " << image.name;
-    file << line.str() << "\n";
-    line.str("");
+    for (int k = 0; k < 4; ++k) Append(&file, qvec(k));
+    for (int k = 0; k < 3; ++k) Append(&file, image.tvec(k));
+    Append(&file, uint64_t(image.camera_id));
+    file += image.name + "\n";
     for (const Point2D& point2D : image.points2D) {
-      line << point2D.xy(0) << " " << point2D.xy(1) << " ";
+      Append(&file, point2D.xy(0));
+      Append(&file, point2D.xy(1));
       if (point2D.HasPoint3D()) {
-        line << point2D.point3D_id << " ";
+        Append(&file, point2D.point3D_id);
       } else {
-        line << -1 << " ";
+        file += "-1 ";
       }
     }
-    file << WithoutTrailingSpace(line) << "\n";
+    EndLine(&file);
   }
-  return file.str();
+  return file;
 }
 
 std::string Points3DText(const Reconstruction& reconstruction) {
-  std::ostringstream file;
-  file.precision(17);
-  file << "# 3D point list with one line of data per point:\n"
-       << "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as "
-          "(IMAGE_ID, POINT2D_IDX)\n"
-       << "# Number of points: " << reconstruction.NumPoints3D()
-       << ", mean track length: " << reconstruction.ComputeMeanTrackLength()
-       << "\n";
+  std::string file =
+      "# 3D point list with one line of data per point:\n"
+      "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as "
+      "(IMAGE_ID, POINT2D_IDX)\n"
+      "# Number of points: " +
+      std::to_string(reconstruction.NumPoints3D()) + ", mean track length: " +
+      Number(reconstruction.ComputeMeanTrackLength()) + "\n";
   for (const auto& [id, point3D] : reconstruction.Points3D()) {
-    file << id << " " << point3D.xyz(0) << " " << point3D.xyz(1) << " "
-         << point3D.xyz(2) << " " << int(point3D.rgb(0)) << " "
-         << int(point3D.rgb(1)) << " " << int(point3D.rgb(2)) << " "
-         << point3D.error << " ";
-    std::ostringstream line;
+    Append(&file, id);
+    for (int k = 0; k < 3; ++k) Append(&file, point3D.xyz(k));
+    for (int k = 0; k < 3; ++k) Append(&file, uint64_t(point3D.rgb(k)));
+    Append(&file, point3D.error);
     for (const TrackElement& element : point3D.track) {
-      line << element.image_id << " " << element.point2D_idx << " ";
+      Append(&file, uint64_t(element.image_id));
+      Append(&file, uint64_t(element.point2D_idx));
     }
-    file << WithoutTrailingSpace(line) << "\n";
+    // COLMAP strips the last space of the track part only: an empty track
+    // leaves the space after ERROR in place.
+    if (point3D.track.empty()) {
+      file.push_back('\n');
+    } else {
+      EndLine(&file);
+    }
   }
-  return file.str();
+  return file;
 }
 
 std::string CamerasBinary(const Reconstruction& reconstruction) {

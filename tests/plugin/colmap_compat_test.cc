@@ -136,7 +136,8 @@ TEST_F(ColmapCompat, ModelWithoutPoints) {
 }
 
 // Hand-written text: unnormalized quaternions (COLMAP normalizes on read and
-// on write), images without keypoints, a point without error.
+// on write), images without keypoints, a point without error, one without
+// observations, -0 and denormal-range numbers.
 TEST_F(ColmapCompat, HandWrittenTextConvertsLikeColmap) {
   const std::string input = dir_ / "hand";
   fs::create_directories(input);
@@ -146,7 +147,8 @@ TEST_F(ColmapCompat, HandWrittenTextConvertsLikeColmap) {
                   "4 0.3333 0.7777 0.123456789 0.987654321 1e-3 0 1 1 y.png\n"
                   "1.25 2.5 8 3 4 -1\n"
                   "5 2 3 5 7 0 0 1 1 z.png\n\n");
-  AtomicWriteFile(input + "/points3D.txt", "8 0.1 0.2 3 1 2 3 -1 4 0\n");
+  AtomicWriteFile(input + "/points3D.txt",
+                  "8 0.1 0.2 3 1 2 3 -1 4 0\n9 -0.0 1e-300 2 0 0 0 0.5\n");
   for (const char* type : {"TXT", "BIN"}) {
     const std::string theirs = dir_ / ("colmap_" + std::string(type));
     const std::string ours = dir_ / ("ours_" + std::string(type));
