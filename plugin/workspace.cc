@@ -52,14 +52,23 @@ class ImageLoader {
     used_ += bytes;
   }
   // Warp map from `source` to `target`, computed once per source camera.
+  // At most kMaxMaps are kept (oldest dropped first): COLMAP models often
+  // have one camera per image, and a 1080p map takes 16 MB.
   std::shared_ptr<const WarpMap> Map(const Camera& source,
                                      const Camera& target) {
+    constexpr size_t kMaxMaps = 8;
+    const MapKey key{source.camera_id, source.width, source.height};
     std::lock_guard<std::mutex> lock(mutex_);
-    auto& map = maps_[{source.camera_id, source.width, source.height}];
+    auto& map = maps_[key];
     if (!map) {
       map = std::make_shared<const WarpMap>(ComputeWarpMap(source, target));
+      map_order_.push_back(key);
+      if (map_order_.size() > kMaxMaps) {
+        maps_.erase(map_order_.front());
+        map_order_.pop_front();
+      }
     }
-    return map;
+    return maps_.at(key);
   }
 
  private:
@@ -76,9 +85,10 @@ class ImageLoader {
   std::unordered_map<size_t, Entry> entries_;
   // Keyed by source camera id and size (images_<k> files may differ by a
   // pixel).
-  std::map<std::tuple<camera_t, uint64_t, uint64_t>,
-           std::shared_ptr<const WarpMap>>
-      maps_;
+  using MapKey = std::tuple<camera_t, uint64_t, uint64_t>;
+  std::map<MapKey, std::shared_ptr<const WarpMap>> maps_;
+  // Keys of maps_ in creation order.
+  std::list<MapKey> map_order_;
 };
 
 namespace {
