@@ -211,9 +211,16 @@ void CpuRasterizer::Backward(const GaussianModel& model,
   grads->visible = ctx.visible;
   const ProjectionCamera& cam = ctx.camera;
   const double half_w = 0.5 * ctx.frame_width, half_h = 0.5 * ctx.frame_height;
-#pragma omp parallel for schedule(static)
+  // Visit Gaussians in id order (not depth order) so the model and gradient
+  // arrays, ~0.5 KB per Gaussian at SH degree 3, stream through the cache.
+  std::vector<int32_t> splat_of(model.size(), -1);
   for (size_t k = 0; k < ctx.splat_ids.size(); ++k) {
-    const size_t i = ctx.splat_ids[k];
+    splat_of[ctx.splat_ids[k]] = static_cast<int32_t>(k);
+  }
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < model.size(); ++i) {
+    if (splat_of[i] < 0) continue;
+    const size_t k = static_cast<size_t>(splat_of[i]);
     const SplatGrad& g = splat_grads[k];
     const float* mean = &model.means[3 * i];
     double grad_mean[3] = {0, 0, 0}, grad_ls[3] = {0, 0, 0};
