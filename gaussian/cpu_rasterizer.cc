@@ -191,6 +191,69 @@ void CpuRasterizer::Forward(const GaussianModel& model,
   if (context != nullptr) *context = std::move(ctx);
 }
 
+namespace {
+
+// Sizes every gradient array for `model` without clearing: the backward
+// pass writes every entry (zeroing takes a serial pass over ~0.25 KB per
+// Gaussian otherwise).
+void SizeGradients(const GaussianModel& model, GaussianGradients* grads) {
+  const size_t n = model.size();
+  grads->means.resize(3 * n), grads->log_scales.resize(3 * n);
+  grads->quats.resize(4 * n), grads->opacity_logits.resize(n);
+  grads->sh_dc.resize(3 * n);
+  grads->sh_rest.resize(n * static_cast<size_t>(model.sh_rest_stride()));
+  grads->mean2d_grad_norm.resize(n), grads->mean2d_grad_norm_ndc.resize(n);
+}
+
+// Writes every gradient of Gaussian i: from its splat's blending gradient
+// g (through SH, the sigmoid and the projection), or zeros if g is null.
+void GaussianBackward(const GaussianModel& model, const CpuRenderContext& ctx,
+                      size_t i, const SplatGrad* g, uint8_t color_clamped,
+                      GaussianGradients* grads) {
+  const int stride = model.sh_rest_stride();
+  float* grad_rest = grads->sh_rest.data() + i * stride;
+  std::fill(grad_rest, grad_rest + stride, 0.f);
+  std::fill_n(&grads->sh_dc[3 * i], 3, 0.f);
+  double grad_mean[3] = {0, 0, 0}, grad_ls[3] = {0, 0, 0};
+  double grad_q[4] = {0, 0, 0, 0}, grad_logit = 0;
+  double grad_mean2d[2] = {0, 0};
+  if (g != nullptr) {
+    const ProjectionCamera& cam = ctx.camera;
+    const float* mean = &model.means[3 * i];
+    double grad_rgb[3];
+    for (int ch = 0; ch < 3; ++ch) {
+      grad_rgb[ch] = color_clamped & (1u << ch) ? 0.0 : g->color[ch];
+    }
+    const double dir[3] = {mean[0] - cam.center[0], mean[1] - cam.center[1],
+                           mean[2] - cam.center[2]};
+    ShColorBackward(ctx.active_sh_degree, &model.sh_dc[3 * i],
+                    model.sh_rest.data() + i * stride, dir, grad_rgb,
+                    &grads->sh_dc[3 * i], grad_rest, grad_mean);
+    const double s = Sigmoid(model.opacity_logits[i]);
+    grad_logit = g->opacity * s * (1 - s);
+    grad_mean2d[0] = g->mean_x, grad_mean2d[1] = g->mean_y;
+    const double grad_conic[3] = {g->conic_a, g->conic_b, g->conic_c};
+    ProjectBackward(cam, mean, &model.log_scales[3 * i], &model.quats[4 * i],
+                    grad_mean2d, grad_conic, grad_mean, grad_ls, grad_q);
+  }
+  for (int d = 0; d < 3; ++d) {
+    grads->means[3 * i + d] = static_cast<float>(grad_mean[d]);
+    grads->log_scales[3 * i + d] = static_cast<float>(grad_ls[d]);
+  }
+  for (int d = 0; d < 4; ++d) {
+    grads->quats[4 * i + d] = static_cast<float>(grad_q[d]);
+  }
+  grads->opacity_logits[i] = static_cast<float>(grad_logit);
+  // sqrt rather than hypot: no overflow risk in double, much cheaper.
+  const double gx = grad_mean2d[0], gy = grad_mean2d[1];
+  const double half_w = 0.5 * ctx.frame_width, half_h = 0.5 * ctx.frame_height;
+  grads->mean2d_grad_norm[i] = static_cast<float>(std::sqrt(gx * gx + gy * gy));
+  grads->mean2d_grad_norm_ndc[i] = static_cast<float>(
+      std::sqrt(gx * gx * half_w * half_w + gy * gy * half_h * half_h));
+}
+
+}  // namespace
+
 void CpuRasterizer::Backward(const GaussianModel& model,
                              const RenderContext& context,
                              const ImageRGB& grad_image,
@@ -206,11 +269,8 @@ void CpuRasterizer::Backward(const GaussianModel& model,
   std::vector<SplatGrad> splat_grads;
   RasterizeBackward(ctx.splats, ctx.bins, ctx.background, ctx.blend, grad_image,
                     &splat_grads);
-  const int stride = model.sh_rest_stride();
-  grads->Reset(model.size(), stride);
+  SizeGradients(model, grads);
   grads->visible = ctx.visible;
-  const ProjectionCamera& cam = ctx.camera;
-  const double half_w = 0.5 * ctx.frame_width, half_h = 0.5 * ctx.frame_height;
   // Visit Gaussians in id order (not depth order) so the model and gradient
   // arrays, ~0.5 KB per Gaussian at SH degree 3, stream through the cache.
   std::vector<int32_t> splat_of(model.size(), -1);
@@ -219,41 +279,9 @@ void CpuRasterizer::Backward(const GaussianModel& model,
   }
 #pragma omp parallel for schedule(static)
   for (size_t i = 0; i < model.size(); ++i) {
-    if (splat_of[i] < 0) continue;
-    const size_t k = static_cast<size_t>(splat_of[i]);
-    const SplatGrad& g = splat_grads[k];
-    const float* mean = &model.means[3 * i];
-    double grad_mean[3] = {0, 0, 0}, grad_ls[3] = {0, 0, 0};
-    double grad_q[4] = {0, 0, 0, 0};
-    double grad_rgb[3];
-    for (int ch = 0; ch < 3; ++ch) {
-      grad_rgb[ch] = ctx.color_clamped[k] & (1u << ch) ? 0.0 : g.color[ch];
-    }
-    const double dir[3] = {mean[0] - cam.center[0], mean[1] - cam.center[1],
-                           mean[2] - cam.center[2]};
-    ShColorBackward(ctx.active_sh_degree, &model.sh_dc[3 * i],
-                    model.sh_rest.data() + i * stride, dir, grad_rgb,
-                    &grads->sh_dc[3 * i], grads->sh_rest.data() + i * stride,
-                    grad_mean);
-    const double s = Sigmoid(model.opacity_logits[i]);
-    grads->opacity_logits[i] = static_cast<float>(g.opacity * s * (1 - s));
-    const double grad_mean2d[2] = {g.mean_x, g.mean_y};
-    const double grad_conic[3] = {g.conic_a, g.conic_b, g.conic_c};
-    ProjectBackward(cam, mean, &model.log_scales[3 * i], &model.quats[4 * i],
-                    grad_mean2d, grad_conic, grad_mean, grad_ls, grad_q);
-    for (int d = 0; d < 3; ++d) {
-      grads->means[3 * i + d] = static_cast<float>(grad_mean[d]);
-      grads->log_scales[3 * i + d] = static_cast<float>(grad_ls[d]);
-    }
-    for (int d = 0; d < 4; ++d) {
-      grads->quats[4 * i + d] = static_cast<float>(grad_q[d]);
-    }
-    // sqrt rather than hypot: no overflow risk in double, much cheaper.
-    const double gx = grad_mean2d[0], gy = grad_mean2d[1];
-    grads->mean2d_grad_norm[i] =
-        static_cast<float>(std::sqrt(gx * gx + gy * gy));
-    grads->mean2d_grad_norm_ndc[i] = static_cast<float>(
-        std::sqrt(gx * gx * half_w * half_w + gy * gy * half_h * half_h));
+    const int32_t k = splat_of[i];
+    GaussianBackward(model, ctx, i, k < 0 ? nullptr : &splat_grads[k],
+                     k < 0 ? 0 : ctx.color_clamped[k], grads);
   }
 }
 
