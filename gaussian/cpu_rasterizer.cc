@@ -169,13 +169,16 @@ void CpuRasterizer::Forward(const GaussianModel& model,
     depth[i] = p.depth;
     clamped[i] = ShadeSplat(model, i, ctx->active_sh_degree, cam, &all[i]);
   }
-  std::vector<uint32_t>& ids = ctx->splat_ids;
+  // Sort (depth, id) pairs held together: indirect comparisons through
+  // depth[] miss the cache on large models.
+  std::vector<std::pair<double, uint32_t>> order;
   for (size_t i = 0; i < n; ++i) {
-    if (binned[i]) ids.push_back(static_cast<uint32_t>(i));
+    if (binned[i]) order.emplace_back(depth[i], static_cast<uint32_t>(i));
   }
-  std::sort(ids.begin(), ids.end(), [&](uint32_t a, uint32_t b) {
-    return depth[a] < depth[b] || (depth[a] == depth[b] && a < b);
-  });
+  std::sort(order.begin(), order.end());
+  std::vector<uint32_t>& ids = ctx->splat_ids;
+  ids.resize(order.size());
+  for (size_t k = 0; k < order.size(); ++k) ids[k] = order[k].second;
   const size_t m = ids.size();
   ctx->splats.resize(m);
   ctx->color_clamped.resize(m);
