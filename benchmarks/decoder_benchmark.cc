@@ -76,15 +76,32 @@ int main(int argc, char** argv) {
     Conv2d conv("bench", 64, 64, 3, &rng);
     Tensor x(1, 64, size, size), y, dx;
     for (float& v : x.data) v = unit(rng);
-    const double conv_fwd =
-        MedianSeconds(repeats, [&] { conv.Forward(x, &y); });
-    const double conv_bwd =
-        MedianSeconds(repeats, [&] { conv.Backward(x, y, &dx, false); });
     using RowMatrix =
         Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     RowMatrix a = RowMatrix::Random(64, 576),
               b = RowMatrix::Random(576, size * size), c(64, size * size);
-    const double gemm = MedianSeconds(repeats, [&] { c.noalias() = a * b; });
+    // Interleaved single runs, so that load from other processes hits the
+    // three measurements alike; medians over 3 x repeats.
+    std::vector<double> fwd, bwd, mm;
+    auto timed = [](auto&& f) {
+      const auto start = Clock::now();
+      f();
+      return std::chrono::duration<double>(Clock::now() - start).count();
+    };
+    conv.Forward(x, &y);
+    conv.Backward(x, y, &dx, false);
+    c.noalias() = a * b;
+    for (int r = 0; r < 3 * repeats; ++r) {
+      fwd.push_back(timed([&] { conv.Forward(x, &y); }));
+      bwd.push_back(timed([&] { conv.Backward(x, y, &dx, false); }));
+      mm.push_back(timed([&] { c.noalias() = a * b; }));
+    }
+    auto median = [](std::vector<double> v) {
+      std::sort(v.begin(), v.end());
+      return v[v.size() / 2];
+    };
+    const double conv_fwd = median(fwd), conv_bwd = median(bwd),
+                 gemm = median(mm);
     const double flops = 2.0 * 64 * 576 * size * size;
     std::printf(
         "conv3x3 64->64 %dx%d: forward %.1f GFLOP/s, backward-data %.1f "
