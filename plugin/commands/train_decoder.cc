@@ -13,10 +13,10 @@ namespace {
 int RunTrainDecoder(int argc, char** argv) {
   watergs::DecoderTrainingOptions options;
   std::string noise = "identity";
-  double learning_rate = options.learning_rate;
-  double image_weight = options.image_weight;
-  double target_psnr = options.target_psnr;
-  double target_psnr_start = options.target_psnr_start;
+  double learning_rate = 1e-3;
+  double image_weight = 0.7;
+  double target_psnr = 0;
+  double target_psnr_start = 24;
   int seed = int(options.seed);
   watergs::OptionParser parser(
       "train_decoder",
