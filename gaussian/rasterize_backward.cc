@@ -64,7 +64,8 @@ struct RowGrads {
 // One splat over one tile row, back to front (Inria's recurrence).
 inline void BackwardRow(const Splat& s, int j, const RowF& dx, float dy, int r,
                         TileState* st, RowGrads* g) {
-  const RowFalloff f = SplatRow(dx, dy, s.conic_a, s.conic_b, s.conic_c);
+  RowFalloff f;
+  SplatRow(dx, dy, s.conic_a, s.conic_b, s.conic_c, &f);
   const RowF raw = s.opacity * f.G;
   const RowF alpha = raw > kMaxAlpha ? RowF{} + kMaxAlpha : raw;
   const RowI valid =

@@ -58,7 +58,8 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
     for (int r = r0; r < r1; ++r) {
       const float dy = static_cast<float>(base_y + r) + 0.5f - s.mean_y;
       if (!RowReachesTile(s, dy, base_x)) continue;
-      const RowFalloff f = SplatRow(dx, dy, s.conic_a, s.conic_b, s.conic_c);
+      RowFalloff f;
+      SplatRow(dx, dy, s.conic_a, s.conic_b, s.conic_c, &f);
       RowF alpha = s.opacity * f.G;
       alpha = alpha > kMaxAlpha ? RowF{} + kMaxAlpha : alpha;
       const RowI ok = active[r] & (f.power <= 0.f) & (alpha >= kMinAlpha);

@@ -82,8 +82,9 @@ void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
 using RowF = float __attribute__((vector_size(4 * kTileSize)));
 using RowI = int32_t __attribute__((vector_size(4 * kTileSize)));
 
-// exp for a row of x <= 0 (Cephes polynomial, ~1 ulp).
-inline RowF RowExp(RowF x) {
+// exp for a row of x <= 0 (Cephes polynomial, ~1 ulp). Vectors go by
+// pointer: by value they would change the ABI when AVX-512 is off.
+inline void RowExp(const RowF& x, RowF* out) {
   const RowF t = x * 1.44269504088896341f + 0.5f;
   RowI n = __builtin_convertvector(t, RowI);
   n += __builtin_convertvector(n, RowF) > t;  // Truncation -> floor.
@@ -96,7 +97,7 @@ inline RowF RowExp(RowF x) {
   p = p * r + 1.6666665459e-1f;
   p = p * r + 5.0000001201e-1f;
   p = p * r * r + r + 1.0f;
-  return p * reinterpret_cast<RowF>((n + 127) << 23);
+  *out = p * reinterpret_cast<RowF>((n + 127) << 23);
 }
 
 // Gaussian falloff of one splat over a tile row: power (<= 0 for a valid
@@ -105,12 +106,11 @@ inline RowF RowExp(RowF x) {
 struct RowFalloff {
   RowF power, G;
 };
-inline RowFalloff SplatRow(const RowF& dx, float dy, float conic_a,
-                           float conic_b, float conic_c) {
-  RowFalloff f;
-  f.power = -0.5f * (conic_a * dx * dx + conic_c * dy * dy) - conic_b * dx * dy;
-  f.G = RowExp(f.power < kMinPower ? RowF{} + kMinPower : f.power);
-  return f;
+inline void SplatRow(const RowF& dx, float dy, float conic_a, float conic_b,
+                     float conic_c, RowFalloff* f) {
+  f->power =
+      -0.5f * (conic_a * dx * dx + conic_c * dy * dy) - conic_b * dx * dy;
+  RowExp(f->power < kMinPower ? RowF{} + kMinPower : f->power, &f->G);
 }
 
 // Sum of a row's lanes, as a tree of half-width adds (a serial chain of 16
