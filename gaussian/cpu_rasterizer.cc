@@ -121,6 +121,86 @@ PixelRect ResolveRenderRect(const RenderCamera& camera,
   return r;
 }
 
+namespace {
+
+// Per-Gaussian results of the projection stage, indexed by Gaussian id.
+struct ProjectedModel {
+  // Blending parameters; filled only where binned (no value-initialisation:
+  // it would cost a 64-byte write per Gaussian).
+  std::unique_ptr<Splat[]> splats;
+  // Tiles to bin into (Inria's rectangle cut to the rendered tiles and to
+  // where alpha can reach 1/255), camera depth, colour-clamp bits.
+  std::vector<TileRange> tiles;
+  std::vector<double> depth;
+  std::vector<uint8_t> binned, clamped;
+};
+
+// Projects and shades every Gaussian that can touch `render_tiles`; sets
+// ctx->visible. Parallel over Gaussians.
+ProjectedModel ProjectModel(const GaussianModel& model,
+                            const TileRange& render_tiles,
+                            CpuRenderContext* ctx) {
+  const size_t n = model.size();
+  ProjectedModel out;
+  out.splats.reset(new Splat[n]);
+  out.tiles.resize(n), out.depth.resize(n);
+  out.binned.assign(n, 0), out.clamped.assign(n, 0);
+  ctx->visible.assign(n, 0);
+  const ProjectionCamera& cam = ctx->camera;
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < n; ++i) {
+    const float* mean = &model.means[3 * i];
+    const float* log_scale = &model.log_scales[3 * i];
+    if (!MayTouchTiles(cam, mean, log_scale, render_tiles)) continue;
+    ProjectedGaussian p;
+    if (!ProjectForward(cam, mean, log_scale, &model.quats[4 * i], &p)) {
+      continue;
+    }
+    if (Intersect(p.tiles, render_tiles).empty()) continue;
+    ctx->visible[i] = 1;
+    const float opacity = static_cast<float>(Sigmoid(model.opacity_logits[i]));
+    Splat& splat = out.splats[i];
+    splat = MakeSplat(p, opacity);
+    TileRange support;
+    if (!AlphaSupport(p, opacity, &splat, &support)) continue;
+    out.tiles[i] = Intersect(Intersect(p.tiles, render_tiles), support);
+    if (out.tiles[i].empty()) continue;
+    out.binned[i] = 1;
+    out.depth[i] = p.depth;
+    out.clamped[i] = ShadeSplat(model, i, ctx->active_sh_degree, cam, &splat);
+  }
+  return out;
+}
+
+// Orders the binned Gaussians front to back (ties by id) into ctx->splats,
+// ctx->splat_ids and ctx->color_clamped; returns their tile ranges.
+std::vector<TileRange> SortSplats(const ProjectedModel& projected,
+                                  CpuRenderContext* ctx) {
+  // Sort (depth, id) pairs held together: indirect comparisons through
+  // depth[] miss the cache on large models.
+  std::vector<std::pair<double, uint32_t>> order;
+  for (size_t i = 0; i < projected.binned.size(); ++i) {
+    if (projected.binned[i]) {
+      order.emplace_back(projected.depth[i], static_cast<uint32_t>(i));
+    }
+  }
+  std::sort(order.begin(), order.end());
+  const size_t m = order.size();
+  ctx->splat_ids.resize(m), ctx->splats.resize(m);
+  ctx->color_clamped.resize(m);
+  std::vector<TileRange> splat_tiles(m);
+  for (size_t k = 0; k < m; ++k) {
+    const uint32_t i = order[k].second;
+    ctx->splat_ids[k] = i;
+    ctx->splats[k] = projected.splats[i];
+    ctx->color_clamped[k] = projected.clamped[i];
+    splat_tiles[k] = projected.tiles[i];
+  }
+  return splat_tiles;
+}
+
+}  // namespace
+
 void CpuRasterizer::Forward(const GaussianModel& model,
                             const RenderCamera& camera,
                             const RenderOptions& options, ImageRGB* image,
@@ -134,60 +214,11 @@ void CpuRasterizer::Forward(const GaussianModel& model,
           ? model.sh_degree
           : std::min(options.active_sh_degree, model.sh_degree);
   ctx->background = options.background;
-  const size_t n = model.size();
-  ctx->num_gaussians = n;
+  ctx->num_gaussians = model.size();
   const TileRange render_tiles =
       TilesCoveringRect(rect.x0, rect.y0, rect.width, rect.height);
-  // Filled only where binned; skipping value-initialisation saves a
-  // 64-byte write per Gaussian.
-  std::unique_ptr<Splat[]> all(new Splat[n]);
-  std::vector<TileRange> all_tiles(n);
-  std::vector<double> depth(n);
-  std::vector<uint8_t> binned(n, 0), clamped(n, 0);
-  ctx->visible.assign(n, 0);
-  const ProjectionCamera& cam = ctx->camera;
-#pragma omp parallel for schedule(static)
-  for (size_t i = 0; i < n; ++i) {
-    if (!MayTouchTiles(cam, &model.means[3 * i], &model.log_scales[3 * i],
-                       render_tiles)) {
-      continue;
-    }
-    ProjectedGaussian p;
-    if (!ProjectForward(cam, &model.means[3 * i], &model.log_scales[3 * i],
-                        &model.quats[4 * i], &p)) {
-      continue;
-    }
-    if (Intersect(p.tiles, render_tiles).empty()) continue;
-    ctx->visible[i] = 1;
-    const float opacity = static_cast<float>(Sigmoid(model.opacity_logits[i]));
-    all[i] = MakeSplat(p, opacity);
-    TileRange support;
-    if (!AlphaSupport(p, opacity, &all[i], &support)) continue;
-    all_tiles[i] = Intersect(Intersect(p.tiles, render_tiles), support);
-    if (all_tiles[i].empty()) continue;
-    binned[i] = 1;
-    depth[i] = p.depth;
-    clamped[i] = ShadeSplat(model, i, ctx->active_sh_degree, cam, &all[i]);
-  }
-  // Sort (depth, id) pairs held together: indirect comparisons through
-  // depth[] miss the cache on large models.
-  std::vector<std::pair<double, uint32_t>> order;
-  for (size_t i = 0; i < n; ++i) {
-    if (binned[i]) order.emplace_back(depth[i], static_cast<uint32_t>(i));
-  }
-  std::sort(order.begin(), order.end());
-  std::vector<uint32_t>& ids = ctx->splat_ids;
-  ids.resize(order.size());
-  for (size_t k = 0; k < order.size(); ++k) ids[k] = order[k].second;
-  const size_t m = ids.size();
-  ctx->splats.resize(m);
-  ctx->color_clamped.resize(m);
-  std::vector<TileRange> splat_tiles(m);
-  for (size_t k = 0; k < m; ++k) {
-    ctx->splats[k] = all[ids[k]];
-    ctx->color_clamped[k] = clamped[ids[k]];
-    splat_tiles[k] = all_tiles[ids[k]];
-  }
+  const std::vector<TileRange> splat_tiles =
+      SortSplats(ProjectModel(model, render_tiles, ctx.get()), ctx.get());
   BinSplats(splat_tiles, render_tiles, &ctx->bins);
   RasterizeForward(ctx->splats, ctx->bins, rect, options.background, image,
                    &ctx->blend);
