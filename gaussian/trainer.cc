@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -18,6 +19,13 @@ namespace watergs {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// CPU seconds of the whole process (all threads).
+double ProcessCpuSeconds() {
+  timespec t;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return t.tv_sec + 1e-9 * t.tv_nsec;
+}
 
 double Seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
@@ -162,11 +170,14 @@ IterationStats Trainer::Step() {
   render_options.background = options_.background;
   render_options.active_sh_degree = active_sh_degree_;
   auto t0 = Clock::now();
+  const double c0 = ProcessCpuSeconds();
   std::unique_ptr<RenderContext> context;
   rasterizer_->Forward(model_, camera, render_options, &render_, &context);
   auto t1 = Clock::now();
+  const double c1 = ProcessCpuSeconds();
   stats.loss = loss_.Evaluate(render_, *truth, &grad_image_);
   auto t2 = Clock::now();
+  const double c2 = ProcessCpuSeconds();
   if (!std::isfinite(stats.loss.total)) {
     FlushLog();
     std::string kept =
@@ -182,6 +193,7 @@ IterationStats Trainer::Step() {
   rasterizer_->Backward(model_, *context, grad_image_, &grads_);
   context.reset();
   auto t3 = Clock::now();
+  const double c3 = ProcessCpuSeconds();
   const std::vector<float>* radii = nullptr;
   if (strategy_->WantsRadii(it)) {
     ComputeRadii(camera);
@@ -190,6 +202,7 @@ IterationStats Trainer::Step() {
   const DensityEvent event =
       strategy_->PostBackward(it, grads_, radii, &model_, &adam_);
   auto t4 = Clock::now();
+  const double c4 = ProcessCpuSeconds();
   // Inria: tensors replaced by densification or an opacity reset have no
   // gradient at this step, and the last iteration takes no step.
   if (it < options_.iterations && !event.densified) {
@@ -199,11 +212,13 @@ IterationStats Trainer::Step() {
     adam_.SetGroupEnabled(ParamGroup::kOpacity, opacity_enabled);
   }
   auto t5 = Clock::now();
+  const double c5 = ProcessCpuSeconds();
   stats.forward_s = Seconds(t0, t1);
   stats.loss_s = Seconds(t1, t2);
   stats.backward_s = Seconds(t2, t3);
   stats.density_s = Seconds(t3, t4);
   stats.adam_s = Seconds(t4, t5);
+  stats.cpu_s = {c1 - c0, c2 - c1, c3 - c2, c4 - c3, c5 - c4};
   stats.num_gaussians = model_.size();
   stats.cloned = event.cloned;
   stats.split = event.split;

@@ -86,6 +86,8 @@ struct IterationStats {
   size_t num_gaussians = 0;
   // Seconds spent in each stage.
   double forward_s = 0, loss_s = 0, backward_s = 0, density_s = 0, adam_s = 0;
+  // Process CPU seconds (all threads) of the same five stages.
+  std::array<double, 5> cpu_s = {0, 0, 0, 0, 0};
   // What density control did.
   size_t cloned = 0, split = 0, pruned = 0;
 };
