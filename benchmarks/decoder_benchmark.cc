@@ -116,7 +116,7 @@ int main(int argc, char** argv) {
   {
     HiddenModel train_model(config, true, 2);
     std::vector<Parameter*> params = train_model.AllParameters();
-    Adam adam(params, 1e-3f);
+    NetworkAdam adam(params, 1e-3f);
     ImageNoise noise;
     StepBuffers buffers;
     const int batch = 8, crop = 128;

@@ -51,7 +51,7 @@ double BatchPsnr(const Tensor& cover, const Tensor& watermarked) {
 }
 
 void SaveCheckpoint(const std::string& path, HiddenModel& model,
-                    const Adam& adam, int64_t step, float image_weight,
+                    const NetworkAdam& adam, int64_t step, float image_weight,
                     const DecoderTrainingOptions& options) {
   NetworkFile file = HiddenModelToFile(model, true);
   file.kind = kCheckpointKind;
@@ -74,8 +74,8 @@ void SaveCheckpoint(const std::string& path, HiddenModel& model,
 }
 
 // Restores model weights, Adam state and counters; returns the step.
-int64_t LoadCheckpoint(const std::string& path, HiddenModel* model, Adam* adam,
-                       float* image_weight,
+int64_t LoadCheckpoint(const std::string& path, HiddenModel* model,
+                       NetworkAdam* adam, float* image_weight,
                        const DecoderTrainingOptions& options) {
   const NetworkFile file = ReadNetworkFile(path);
   if (file.kind != kCheckpointKind) FailAt(path, "not a training checkpoint");
@@ -183,7 +183,7 @@ std::string FormatValidation(const ValidationResult& result) {
   return s.str();
 }
 
-StepResult TrainStep(HiddenModel& model, Adam& adam, ImageNoise& noise,
+StepResult TrainStep(HiddenModel& model, NetworkAdam& adam, ImageNoise& noise,
                      NoiseKind kind, const Tensor& cover,
                      const std::vector<float>& targets, float image_weight,
                      std::mt19937* rng, StepBuffers* buf) {
@@ -222,7 +222,7 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
 
   HiddenModel model(options.config, true, options.seed);
   std::vector<Parameter*> params = model.AllParameters();
-  Adam adam(params, options.learning_rate);
+  NetworkAdam adam(params, options.learning_rate);
   float image_weight = options.image_weight;
   const std::string checkpoint = options.output_path + ".ckpt";
   int64_t step = 0;

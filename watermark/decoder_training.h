@@ -90,7 +90,7 @@ struct StepBuffers {
 // One Adam step on cover [N,3,H,W] in [-1,1] with message bits `targets`
 // (N*L values 0/1) under noise `kind`: encoder, noise, decoder, loss
 // image_weight * MSE + BCE, backward through all three, update.
-StepResult TrainStep(HiddenModel& model, Adam& adam, ImageNoise& noise,
+StepResult TrainStep(HiddenModel& model, NetworkAdam& adam, ImageNoise& noise,
                      NoiseKind kind, const Tensor& cover,
                      const std::vector<float>& targets, float image_weight,
                      std::mt19937* rng, StepBuffers* buffers);

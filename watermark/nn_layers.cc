@@ -347,7 +347,7 @@ double MseLoss(const Tensor& a, const Tensor& b, Tensor* da) {
   return total / double(n);
 }
 
-Adam::Adam(std::vector<Parameter*> params, float lr)
+NetworkAdam::NetworkAdam(std::vector<Parameter*> params, float lr)
     : learning_rate(lr), params_(std::move(params)) {
   for (const Parameter* p : params_) {
     m.emplace_back(p->trainable ? p->size() : 0, 0.f);
@@ -355,11 +355,11 @@ Adam::Adam(std::vector<Parameter*> params, float lr)
   }
 }
 
-void Adam::ZeroGrad() {
+void NetworkAdam::ZeroGrad() {
   for (Parameter* p : params_) std::fill(p->grad.begin(), p->grad.end(), 0.f);
 }
 
-void Adam::Step() {
+void NetworkAdam::Step() {
   constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEps = 1e-8;
   ++step;
   const double correction1 = 1.0 - std::pow(kBeta1, double(step));

@@ -1,8 +1,9 @@
 // Neural-network layers on NCHW float tensors (CPU): Conv2d, BatchNorm2d,
 // ReLU, global average pooling, Linear, the BCE-with-logits and MSE losses,
-// and Adam. Layers own their parameters but not their activations: the caller
-// passes the forward input back to Backward, so a network decides what it
-// keeps, and a CUDA twin can offer the same calls on device tensors.
+// and Adam (class NetworkAdam). Layers own their parameters but not their
+// activations: the caller passes the forward input back to Backward, so a
+// network decides what it keeps, and a CUDA twin can offer the same calls on
+// device tensors.
 #pragma once
 
 #include <cstdint>
@@ -121,9 +122,9 @@ double BceWithLogits(const Tensor& logits, const std::vector<float>& targets,
 double MseLoss(const Tensor& a, const Tensor& b, Tensor* da);
 
 // Adam with PyTorch's defaults (betas 0.9, 0.999, eps 1e-8), bias-corrected.
-class Adam {
+class NetworkAdam {
  public:
-  Adam(std::vector<Parameter*> params, float learning_rate);
+  NetworkAdam(std::vector<Parameter*> params, float learning_rate);
   // Sets every trainable gradient to zero.
   void ZeroGrad();
   // One update from the accumulated gradients.

@@ -295,7 +295,7 @@ TEST(AdamTest, FirstStepMovesByLearningRateAgainstTheGradientSign) {
   p.value = {1.f, 2.f, 3.f};
   p.grad = {0.5f, -4.f, 1e-3f};
   Parameter buffer("b", {1}, false);
-  Adam adam({&p, &buffer}, 0.01f);
+  NetworkAdam adam({&p, &buffer}, 0.01f);
   adam.Step();
   // Bias-corrected first step: m_hat / sqrt(v_hat) = sign(g).
   EXPECT_NEAR(p.value[0], 0.99f, 1e-6);
