@@ -1,0 +1,253 @@
+// `watergs embed`: fine-tunes a trained 3DGS model (PLY) on its COLMAP
+// workspace so that the frozen decoder reads the owner's message from its
+// renders (WATER-GS), and writes the watermarked PLY in the input's layout.
+#include <omp.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "gaussian/loss.h"
+#include "gaussian/ply_io.h"
+#include "gaussian/progress.h"
+#include "plugin/command.h"
+#include "plugin/option_parser.h"
+#include "plugin/training_views.h"
+#include "plugin/workspace.h"
+#include "watermark/embedder.h"
+
+namespace watergs {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct EmbedArgs {
+  std::string input_path, output_path, decoder_path, message;
+  WorkspaceOptions workspace;
+  int64_t iterations = 10000;
+  double gamma = 0.3, beta = 0.2;
+  std::string mask = "ALL";
+  std::string distortions = "identity,gn:0.01,dropout:0.1,crop:0.1";
+  int crop_size = 128;
+  bool full_frame_loss = false;
+  int patience = 2;
+  int check_views = 4;
+  int64_t check_every = 200;
+  std::string densify = "on";
+  std::string background = "0,0,0";
+  int64_t seed = 0;
+  int num_threads = 0;
+  int64_t checkpoint_every = 0;
+  bool resume = false;
+};
+
+void Validate(const EmbedArgs& a) {
+  if (a.input_path == a.output_path) {
+    Fail("embed: --output_path must differ from --input_path");
+  }
+  if (a.iterations < 1) Fail("--iterations must be at least 1");
+  if (!(a.gamma >= 0)) Fail("--gamma must be >= 0");
+  if (!(a.beta >= 0 && a.beta <= 1)) Fail("--beta must be in [0, 1]");
+  if (a.crop_size < 0) Fail("--crop_size must be >= 0 (0 = whole frames)");
+  if (a.patience < 0 || a.check_views < 0 || a.check_every < 1) {
+    Fail("--patience, --check_views must be >= 0, --check_every >= 1");
+  }
+  if (a.densify != "on" && a.densify != "off") Fail("--densify: on or off");
+  if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
+}
+
+// `count` views spread evenly over `views`.
+std::vector<size_t> SpreadViews(const std::vector<size_t>& views, int count) {
+  std::vector<size_t> out;
+  const size_t n = std::min<size_t>(count, views.size());
+  for (size_t k = 0; k < n; ++k) out.push_back(views[k * views.size() / n]);
+  return out;
+}
+
+// Seconds of one forward + backward pass of the rasterizer at `rect`
+// (empty = whole frame), median of `repeats`.
+double RasterSeconds(Rasterizer& rasterizer, const GaussianModel& model,
+                     const RenderCamera& camera, const PixelRect& rect,
+                     int repeats) {
+  std::vector<double> times;
+  RenderOptions options;
+  options.rect = rect;
+  ImageRGB image;
+  GaussianGradients grads;
+  for (int r = 0; r < repeats; ++r) {
+    const auto t0 = Clock::now();
+    std::unique_ptr<RenderContext> context;
+    rasterizer.Forward(model, camera, options, &image, &context);
+    ImageRGB grad(image.width, image.height);
+    std::fill(grad.data.begin(), grad.data.end(), 1e-3f);
+    rasterizer.Backward(model, *context, grad, &grads);
+    times.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
+  }
+  std::sort(times.begin(), times.end());
+  return times[times.size() / 2];
+}
+
+void PrintTimings(const Embedder& embedder) {
+  const EmbedTimings& t = embedder.total_timings();
+  const double n = std::max<int64_t>(1, embedder.iteration());
+  std::printf(
+      "embed: per iteration %.1f ms = distortion %.1f + render %.1f + image "
+      "loss %.1f + decoder %.1f + backward %.1f + density %.1f + adam %.1f\n",
+      1e3 * t.Total() / n, 1e3 * t.distortion / n, 1e3 * t.render / n,
+      1e3 * t.image_loss / n, 1e3 * t.decoder / n, 1e3 * t.backward / n,
+      1e3 * t.density / n, 1e3 * t.adam / n);
+}
+
+int RunEmbed(int argc, char** argv) {
+  EmbedArgs a;
+  OptionParser parser("embed",
+                      "Embeds a WATER-GS watermark into a trained 3DGS model "
+                      "by fine-tuning it against a frozen decoder.");
+  parser.AddRequired("input_path", &a.input_path, "Trained 3DGS PLY");
+  parser.AddRequired("workspace_path", &a.workspace.workspace_path,
+                     "COLMAP workspace the model was trained on");
+  parser.Add("image_path", &a.workspace.image_path,
+             "Image folder (default <workspace>/images)");
+  parser.Add("downscale", &a.workspace.downscale, "Image downscale: 1,2,4,8");
+  parser.AddRequired("decoder", &a.decoder_path, "Decoder weights file");
+  parser.AddRequired("message", &a.message,
+                     "Message: hex:.. / 0x.. / bits:.. / text");
+  parser.AddRequired("output_path", &a.output_path, "Watermarked PLY");
+  parser.Add("iterations", &a.iterations, "Fine-tuning iterations");
+  parser.Add("gamma", &a.gamma, "Weight of the message loss");
+  parser.Add("beta", &a.beta, "Weight of D-SSIM in the image loss");
+  parser.Add("mask", &a.mask,
+             "ALL or trainable groups: xyz,f_dc,f_rest,opacity,scaling,"
+             "rotation (a partial mask turns density control off)");
+  parser.Add("distortions", &a.distortions,
+             "3D distortion layers sampled per iteration, or none");
+  parser.Add("crop_size", &a.crop_size,
+             "Side of the random crop rendered per iteration (0 = frames)");
+  parser.AddFlag("full_frame_loss", &a.full_frame_loss,
+                 "Render whole frames for the image loss (decoder on crop)");
+  parser.Add("patience", &a.patience,
+             "Stop after this many checks at BER 0 (0 = never)");
+  parser.Add("check_views", &a.check_views, "Views decoded at each check");
+  parser.Add("check_every", &a.check_every, "Iterations between checks");
+  parser.Add("densify", &a.densify, "Adaptive density control: on or off");
+  parser.Add("background", &a.background, "r,g,b, black or white");
+  parser.Add("seed", &a.seed, "Random seed");
+  parser.Add("num_threads", &a.num_threads, "Threads (0 = all cores)");
+  parser.Add("checkpoint_every", &a.checkpoint_every,
+             "Write OUTPUT.ckpt every N iterations (0 = never)");
+  parser.AddFlag("resume", &a.resume, "Continue from OUTPUT.ckpt");
+  if (!parser.Parse(argc, argv)) return 0;
+  Validate(a);
+  if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
+  const std::string checkpoint_path = a.output_path + ".ckpt";
+  if (a.resume && !std::filesystem::exists(checkpoint_path)) {
+    FailAt(checkpoint_path, "no checkpoint to resume (use --checkpoint_every)");
+  }
+
+  EmbedOptions options = DefaultEmbedOptions(a.iterations);
+  options.gamma = a.gamma;
+  options.beta = a.beta;
+  options.trainable = ParseParamMask(a.mask);
+  if (a.distortions != "none") {
+    options.distortions = ParseDistortionList(a.distortions);
+  }
+  options.crop_size = a.crop_size;
+  options.full_frame_image_loss = a.full_frame_loss;
+  options.patience = a.patience;
+  options.check_every = a.check_every;
+  options.densify = a.densify == "on";
+  options.background = ParseBackground(a.background);
+  options.seed = static_cast<uint64_t>(a.seed);
+  options.checkpoint_path = checkpoint_path;
+  options.checkpoint_every = a.checkpoint_every;
+  options.show_progress = true;
+
+  PlyData ply = ReadPly(a.input_path);
+  Decoder decoder = Decoder::Load(a.decoder_path);
+  Bits message = ParseMessage(a.message, decoder.NumBits());
+  const Workspace workspace = Workspace::Open(a.workspace);
+  const WorkspaceViews views(workspace);
+  const std::vector<size_t> train_views = workspace.TrainViews(false);
+  options.check_views = SpreadViews(train_views, a.check_views);
+  const double extent = workspace.SceneExtent();
+  const RenderCamera first = views.Camera(train_views.front());
+  std::printf(
+      "embed: %zu Gaussians, %zu views %dx%d, %d-bit message %s, "
+      "distortions %s, crop %d, density control %s, %d threads\n",
+      ply.model.size(), train_views.size(), first.width, first.height,
+      decoder.NumBits(), BitsToHex(message).c_str(), a.distortions.c_str(),
+      a.crop_size, a.densify.c_str(), omp_get_max_threads());
+
+  const GaussianModel raw = ply.model;
+  Embedder embedder(options, views, train_views, std::move(ply.model), extent,
+                    &decoder, message, MakeCpuRasterizer());
+  if (a.resume) {
+    embedder.Resume(checkpoint_path);
+    std::printf("embed: resumed at iteration %lld\n",
+                static_cast<long long>(embedder.iteration()));
+  }
+  const CheckResult before = embedder.Check(options.check_views);
+  const auto t0 = Clock::now();
+  const bool early = embedder.Run();
+  const double seconds =
+      std::chrono::duration<double>(Clock::now() - t0).count();
+  if (a.checkpoint_every > 0) embedder.SaveCheckpoint(checkpoint_path);
+  const CheckResult after = embedder.Check(options.check_views);
+
+  ply.layout.RemapExtras(embedder.origin());
+  WritePly(a.output_path, embedder.model(), ply.layout);
+
+  // Fidelity: watermarked vs raw renders on the check views.
+  double psnr_vs_raw = 0;
+  ImageRGB raw_image, wm_image;
+  RenderOptions render_options;
+  render_options.background = options.background;
+  for (size_t v : options.check_views) {
+    embedder.rasterizer().Forward(raw, views.Camera(v), render_options,
+                                  &raw_image, nullptr);
+    embedder.rasterizer().Forward(embedder.model(), views.Camera(v),
+                                  render_options, &wm_image, nullptr);
+    for (float& x : raw_image.data) x = std::clamp(x, 0.f, 1.f);
+    psnr_vs_raw += Psnr(wm_image, raw_image) / options.check_views.size();
+  }
+  std::printf("embed: %lld iterations in %s%s, %zu Gaussians\n",
+              static_cast<long long>(embedder.iteration()),
+              FormatDuration(seconds).c_str(),
+              early ? " (stopped early: check BER 0)" : "",
+              embedder.model().size());
+  std::printf(
+      "embed: check views (%zu): BER %.2f%% -> %.2f%% (mean of views), "
+      "%.2f%% (mean logits); PSNR vs ground truth %.2f -> %.2f dB, "
+      "vs raw %.2f dB\n",
+      options.check_views.size(), 100 * before.mean_ber, 100 * after.mean_ber,
+      100 * after.aggregate_ber, before.psnr, after.psnr, psnr_vs_raw);
+  PrintTimings(embedder);
+  if (a.crop_size > 0 && !a.full_frame_loss) {
+    auto rasterizer = MakeCpuRasterizer();
+    const int w = std::min(a.crop_size, first.width);
+    const int h = std::min(a.crop_size, first.height);
+    const PixelRect rect{(first.width - w) / 2, (first.height - h) / 2, w, h};
+    const double crop_s =
+        RasterSeconds(*rasterizer, embedder.model(), first, rect, 3);
+    const double frame_s =
+        RasterSeconds(*rasterizer, embedder.model(), first, PixelRect{}, 3);
+    std::printf(
+        "embed: render+backward %dx%d crop %.1f ms vs whole %dx%d frame "
+        "%.1f ms: %.1fx faster\n",
+        w, h, 1e3 * crop_s, first.width, first.height, 1e3 * frame_s,
+        frame_s / crop_s);
+  }
+  std::printf("embed: wrote %s\n", a.output_path.c_str());
+  return 0;
+}
+
+}  // namespace
+}  // namespace watergs
+
+WATERGS_COMMAND(embed, "Embeds a WATER-GS watermark into a 3DGS model",
+                watergs::RunEmbed);

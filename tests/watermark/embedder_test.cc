@@ -1,0 +1,307 @@
+// Tests of WATER-GS embedding: the parameter mask, the gradient of the
+// message term through decoder and rasterizer, and that fine-tuning writes
+// the message (on a tiny synthetic scene with a tiny random decoder).
+#include "watermark/embedder.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+#include "gaussian/error.h"
+#include "watermark/hidden_model.h"
+
+namespace watergs {
+namespace {
+
+RenderCamera LookAtOrigin(const Eigen::Vector3d& center, int w, int h) {
+  RenderCamera cam;
+  cam.width = w, cam.height = h;
+  cam.fx = cam.fy = 0.8 * w;
+  cam.cx = 0.5 * w, cam.cy = 0.5 * h;
+  const Eigen::Vector3d z = (-center).normalized();
+  const Eigen::Vector3d x = Eigen::Vector3d(0, 0, 1).cross(z).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  cam.R.row(0) = x;
+  cam.R.row(1) = y;
+  cam.R.row(2) = z;
+  cam.t = -cam.R * center;
+  return cam;
+}
+
+GaussianModel RandomBall(int n, uint32_t seed, float scale) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1, 1);
+  GaussianModel m;
+  m.sh_degree = 1;
+  m.Resize(n);
+  for (int i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      m.means[3 * i + a] = 0.8f * u(rng);
+      m.log_scales[3 * i + a] = std::log(scale * (1.2f + 0.5f * u(rng)));
+      m.sh_dc[3 * i + a] = 1.2f * u(rng);
+    }
+    for (int k = 0; k < m.sh_rest_stride(); ++k) {
+      m.sh_rest[m.sh_rest_stride() * i + k] = 0.1f * u(rng);
+    }
+    m.quats[4 * i] = 1;
+    m.quats[4 * i + 1] = 0.3f * u(rng);
+    m.opacity_logits[i] = 1.0f + u(rng);
+  }
+  return m;
+}
+
+// A scene rendered from its own model (the raw model is already converged).
+struct Scene {
+  InMemoryViews views;
+  std::vector<size_t> train;
+  GaussianModel model;
+};
+
+Scene MakeScene(int num_views, int w, int h) {
+  Scene s;
+  s.model = RandomBall(80, 1, 0.12f);
+  auto rasterizer = MakeCpuRasterizer();
+  for (int v = 0; v < num_views; ++v) {
+    const double a = 2 * M_PI * v / num_views;
+    const RenderCamera cam = LookAtOrigin(
+        Eigen::Vector3d(3 * std::cos(a), 3 * std::sin(a), 0.5), w, h);
+    ImageRGB image;
+    rasterizer->Forward(s.model, cam, RenderOptions{}, &image, nullptr);
+    s.views.Add("view" + std::to_string(v), cam, image);
+    s.train.push_back(v);
+  }
+  return s;
+}
+
+HiddenConfig TinyDecoderConfig(int bits) {
+  HiddenConfig config;
+  config.num_bits = bits;
+  config.channels = 6;
+  config.encoder_blocks = 1;
+  config.decoder_blocks = 2;
+  return config;
+}
+
+// A freshly initialised decoder reads nearly the same logits from every
+// image (its pooled features barely vary), unlike a trained one. Scaling the
+// final linear layer by `gain` and centring its bias on the scene's renders
+// gives the random decoder a trained one's sensitivity.
+void MakeResponsive(HiddenModel* net, float gain, const TrainingViews& views) {
+  Parameter *weight = nullptr, *bias = nullptr;
+  for (Parameter* p : net->DecoderParameters()) {
+    if (p->name == "decoder.linear.weight") weight = p;
+    if (p->name == "decoder.linear.bias") bias = p;
+  }
+  ASSERT_TRUE(weight && bias);
+  for (float& w : weight->value) w *= gain;
+  for (float& b : bias->value) b *= gain;
+  Decoder decoder(net);
+  std::vector<double> mean(bias->value.size(), 0);
+  for (size_t v = 0; v < views.NumViews(); ++v) {
+    const std::vector<float> logits = decoder.Logits(*views.Image(v));
+    for (size_t i = 0; i < mean.size(); ++i) {
+      mean[i] += logits[i] / views.NumViews();
+    }
+  }
+  for (size_t i = 0; i < mean.size(); ++i) bias->value[i] -= mean[i];
+}
+
+Bits RandomBits(int n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  Bits bits(n);
+  for (auto& b : bits) b = rng() & 1;
+  return bits;
+}
+
+TEST(ParamMask, ParsesGroupsAndRejectsUnknownNames) {
+  const auto all = ParseParamMask("ALL");
+  for (bool b : all) EXPECT_TRUE(b);
+  const auto some = ParseParamMask("xyz,opacity");
+  EXPECT_TRUE(some[int(ParamGroup::kXyz)]);
+  EXPECT_TRUE(some[int(ParamGroup::kOpacity)]);
+  EXPECT_FALSE(some[int(ParamGroup::kFDc)]);
+  EXPECT_THROW(ParseParamMask("xyz,colour"), Error);
+  EXPECT_THROW(ParseParamMask(""), Error);
+}
+
+TEST(Embedder, MaskKeepsFrozenGroupsBitIdentical) {
+  Scene s = MakeScene(3, 32, 24);
+  HiddenModel net(TinyDecoderConfig(8), false, 3);
+  Decoder decoder(&net);
+  EmbedOptions o = DefaultEmbedOptions(6);
+  o.trainable = ParseParamMask("f_dc,opacity");
+  o.distortions = ParseDistortionList("identity,gn:0.01,dropout:0.2,crop:0.2");
+  o.crop_size = 16;
+  o.gamma = 1;
+  Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder,
+                    RandomBits(8, 1), MakeCpuRasterizer());
+  embedder.Run();
+  const GaussianModel& m = embedder.model();
+  ASSERT_EQ(m.size(), s.model.size());
+  EXPECT_EQ(m.means, s.model.means);
+  EXPECT_EQ(m.log_scales, s.model.log_scales);
+  EXPECT_EQ(m.quats, s.model.quats);
+  EXPECT_EQ(m.sh_rest, s.model.sh_rest);
+  EXPECT_NE(m.sh_dc, s.model.sh_dc);
+  EXPECT_NE(m.opacity_logits, s.model.opacity_logits);
+}
+
+// Directional derivative of gamma * BCE(m, D(render(model)[crop])) along
+// `d` (same layout as the gradient arrays), by central differences.
+double FiniteDifference(Rasterizer& rasterizer, const GaussianModel& model,
+                        const GaussianGradients& d, const RenderCamera& cam,
+                        const RenderOptions& options, const PixelRect& crop,
+                        Decoder& decoder, const std::vector<float>& targets,
+                        float eps) {
+  auto shifted = [&](float sign) {
+    GaussianModel m = model;
+    for (size_t k = 0; k < m.means.size(); ++k) {
+      m.means[k] += sign * eps * d.means[k];
+    }
+    for (size_t k = 0; k < m.sh_dc.size(); ++k) {
+      m.sh_dc[k] += sign * eps * d.sh_dc[k];
+    }
+    for (size_t k = 0; k < m.opacity_logits.size(); ++k) {
+      m.opacity_logits[k] += sign * eps * d.opacity_logits[k];
+    }
+    for (size_t k = 0; k < m.log_scales.size(); ++k) {
+      m.log_scales[k] += sign * eps * d.log_scales[k];
+    }
+    return MessageLossGradient(rasterizer, m, cam, options, crop, decoder,
+                               targets, 1.0, nullptr);
+  };
+  return (shifted(1) - shifted(-1)) / (2.0 * eps);
+}
+
+double Dot(const GaussianGradients& g, const GaussianGradients& d) {
+  double sum = 0;
+  for (size_t k = 0; k < g.means.size(); ++k) sum += g.means[k] * d.means[k];
+  for (size_t k = 0; k < g.sh_dc.size(); ++k) sum += g.sh_dc[k] * d.sh_dc[k];
+  for (size_t k = 0; k < g.log_scales.size(); ++k) {
+    sum += g.log_scales[k] * d.log_scales[k];
+  }
+  for (size_t k = 0; k < g.opacity_logits.size(); ++k) {
+    sum += g.opacity_logits[k] * d.opacity_logits[k];
+  }
+  return sum;
+}
+
+// The decoder is float only, so this is a directional-derivative check in
+// float along the gradient itself (derivative |g|^2 / |g|, well above the
+// noise) and along a random direction. Tolerance: the loss is ~0.7 with
+// float rounding ~1e-6 after the network, so with eps = 2e-3 the quotient's
+// rounding error is ~1e-3 absolute; the curvature term eps^2 f'''/6 is far
+// below that for these smooth parameters. A wrong crop offset, a missing
+// gamma or a transposed image gradient changes the derivative by O(1).
+TEST(Embedder, MessageGradientMatchesFiniteDifferences) {
+  Scene s = MakeScene(1, 28, 22);
+  HiddenModel net(TinyDecoderConfig(8), false, 11);
+  Decoder decoder(&net);
+  auto rasterizer = MakeCpuRasterizer();
+  const std::vector<float> targets = {1, 0, 1, 1, 0, 0, 1, 0};
+  const RenderCamera cam = s.views.Camera(0);
+  const PixelRect crop{6, 5, 14, 12};
+  // Both modes of Step: whole render with the decoder on the crop, and a
+  // render of the crop only.
+  for (int mode = 0; mode < 2; ++mode) {
+    RenderOptions options;
+    PixelRect decoder_crop = crop;
+    if (mode == 1) {
+      options.rect = crop;
+      decoder_crop = PixelRect{};
+    }
+    GaussianGradients g;
+    MessageLossGradient(*rasterizer, s.model, cam, options, decoder_crop,
+                        decoder, targets, 1.0, &g);
+    const double norm = std::sqrt(Dot(g, g));
+    ASSERT_GT(norm, 1e-3);
+    GaussianGradients along_g = g;
+    for (auto* v : {&along_g.means, &along_g.sh_dc, &along_g.log_scales,
+                    &along_g.opacity_logits}) {
+      for (float& x : *v) x /= norm;
+    }
+    const double fd =
+        FiniteDifference(*rasterizer, s.model, along_g, cam, options,
+                         decoder_crop, decoder, targets, 2e-3f);
+    EXPECT_NEAR(fd, norm, 0.02 * norm + 1e-3) << "mode " << mode;
+
+    std::mt19937 rng(7 + mode);
+    std::normal_distribution<float> normal(0, 1);
+    GaussianGradients random = g;
+    for (auto* v : {&random.means, &random.sh_dc, &random.log_scales,
+                    &random.opacity_logits}) {
+      for (float& x : *v) x = normal(rng) * 0.2f;
+    }
+    const double analytic = Dot(g, random);
+    const double fd_random =
+        FiniteDifference(*rasterizer, s.model, random, cam, options,
+                         decoder_crop, decoder, targets, 2e-3f);
+    EXPECT_NEAR(fd_random, analytic, 0.02 * norm + 1e-3) << "mode " << mode;
+  }
+}
+
+TEST(Embedder, EmbeddingLowersTheBitErrorRate) {
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  Decoder decoder(&net);
+  const Bits message = RandomBits(16, 9);
+  EmbedOptions o = DefaultEmbedOptions(40);
+  // Whole frames: a random decoder does not read crops and frames alike (a
+  // trained one does); crops are covered by the gradient test.
+  o.crop_size = 0;
+  o.gamma = 3;
+  o.densify = false;
+  o.distortions = ParseDistortionList("identity,dropout:0.1");
+  // A faster colour rate keeps the run short.
+  o.adam.feature_lr = 0.02;
+  o.seed = 2;
+  Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder, message,
+                    MakeCpuRasterizer());
+  const CheckResult before = embedder.Check(s.train);
+  embedder.Run();
+  const CheckResult after = embedder.Check(s.train);
+  // Seeded and deterministic; a random decoder is far less sensitive than a
+  // trained one, so a short run only moves part of the way.
+  EXPECT_GT(before.mean_ber, 0.25);
+  EXPECT_LT(after.mean_ber, before.mean_ber - 0.05);
+  // The scene still looks like itself.
+  EXPECT_GT(after.psnr, 20.0);
+}
+
+// Identity-only runs render the model itself: same random stream, same
+// result as a run without layers (and no copy or scatter; timing in
+// benchmarks/embed_benchmark.cc).
+TEST(Embedder, IdentityOnlyRunEqualsARunWithoutLayers) {
+  Scene s = MakeScene(2, 24, 20);
+  HiddenModel net(TinyDecoderConfig(8), false, 3);
+  Decoder decoder(&net);
+  EmbedOptions o = DefaultEmbedOptions(4);
+  o.crop_size = 12;
+  o.densify = false;
+  Embedder plain(o, s.views, s.train, s.model, 3.0, &decoder, RandomBits(8, 1),
+                 MakeCpuRasterizer());
+  plain.Run();
+  o.distortions = ParseDistortionList("identity");
+  Embedder identity(o, s.views, s.train, s.model, 3.0, &decoder,
+                    RandomBits(8, 1), MakeCpuRasterizer());
+  identity.Run();
+  EXPECT_EQ(plain.model().means, identity.model().means);
+  EXPECT_EQ(plain.model().sh_dc, identity.model().sh_dc);
+  EXPECT_NE(plain.model().sh_dc, s.model.sh_dc);
+  EXPECT_EQ(identity.total_timings().distortion < 1e-3, true);
+}
+
+TEST(Embedder, RefusesAMessageOfTheWrongLength) {
+  Scene s = MakeScene(1, 16, 12);
+  HiddenModel net(TinyDecoderConfig(8), false, 5);
+  Decoder decoder(&net);
+  EXPECT_THROW(Embedder(DefaultEmbedOptions(1), s.views, s.train, s.model, 3.0,
+                        &decoder, RandomBits(9, 1), MakeCpuRasterizer()),
+               Error);
+}
+
+}  // namespace
+}  // namespace watergs

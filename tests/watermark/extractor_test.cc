@@ -1,0 +1,169 @@
+// Tests of watermark extraction: aggregation over views, the statistics
+// reported, free viewpoints, and that an unmarked model is not claimed.
+#include "watermark/extractor.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "gaussian/error.h"
+#include "watermark/hidden_model.h"
+
+namespace watergs {
+namespace {
+
+RenderCamera LookAtOrigin(const Eigen::Vector3d& center, int w, int h) {
+  RenderCamera cam;
+  cam.width = w, cam.height = h;
+  cam.fx = cam.fy = 0.8 * w;
+  cam.cx = 0.5 * w, cam.cy = 0.5 * h;
+  const Eigen::Vector3d z = (-center).normalized();
+  const Eigen::Vector3d x = Eigen::Vector3d(0, 0, 1).cross(z).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  cam.R.row(0) = x;
+  cam.R.row(1) = y;
+  cam.R.row(2) = z;
+  cam.t = -cam.R * center;
+  return cam;
+}
+
+GaussianModel RandomBall(int n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1, 1);
+  GaussianModel m;
+  m.sh_degree = 0;
+  m.Resize(n);
+  for (int i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      m.means[3 * i + a] = 0.8f * u(rng);
+      m.log_scales[3 * i + a] = std::log(0.12f * (1.2f + 0.5f * u(rng)));
+      m.sh_dc[3 * i + a] = 1.2f * u(rng);
+    }
+    m.quats[4 * i] = 1;
+    m.opacity_logits[i] = 1.0f + u(rng);
+  }
+  return m;
+}
+
+struct ExtractScene {
+  InMemoryViews views;
+  std::vector<RenderCamera> cameras;
+  std::vector<std::string> names;
+  GaussianModel model = RandomBall(60, 3);
+  HiddenModel net;
+  ExtractScene() : net(Config(), false, 21) {
+    for (int v = 0; v < 5; ++v) {
+      const double a = 2 * M_PI * v / 5;
+      cameras.push_back(LookAtOrigin(
+          Eigen::Vector3d(3 * std::cos(a), 3 * std::sin(a), 0.5), 32, 24));
+      names.push_back("v" + std::to_string(v));
+      views.Add(names.back(), cameras.back(), ImageRGB(32, 24));
+    }
+  }
+  static HiddenConfig Config() {
+    HiddenConfig c;
+    c.num_bits = 48;
+    c.channels = 6;
+    c.decoder_blocks = 2;
+    c.encoder_blocks = 1;
+    return c;
+  }
+};
+
+TEST(Extractor, AggregatesLogitsAndReportsSpreadAndPValue) {
+  ExtractScene s;
+  Decoder decoder(&s.net);
+  auto rasterizer = MakeCpuRasterizer();
+  Bits expected(48);
+  for (int i = 0; i < 48; ++i) expected[i] = (i * 7) % 3 == 0;
+  const ExtractionResult r =
+      ExtractWatermark(*rasterizer, s.model, s.cameras, s.names, decoder,
+                       &expected, {0, 0, 0}, VerificationThresholds{});
+  ASSERT_EQ(r.views.size(), 5u);
+  // Recompute the aggregate independently from per-view renders.
+  std::vector<double> sum(48, 0);
+  std::vector<double> bers;
+  for (size_t v = 0; v < s.cameras.size(); ++v) {
+    ImageRGB image;
+    rasterizer->Forward(s.model, s.cameras[v], RenderOptions{}, &image,
+                        nullptr);
+    for (float& x : image.data) x = std::clamp(x, 0.f, 1.f);
+    const std::vector<float> logits = decoder.Logits(image);
+    int errors = 0;
+    for (int i = 0; i < 48; ++i) {
+      sum[i] += logits[i];
+      errors += (logits[i] > 0) != (expected[i] == 1);
+    }
+    bers.push_back(errors / 48.0);
+    EXPECT_EQ(r.views[v].bit_errors, errors);
+  }
+  int errors = 0;
+  for (int i = 0; i < 48; ++i) {
+    EXPECT_EQ(r.recovered[i], sum[i] > 0 ? 1 : 0) << i;
+    errors += r.recovered[i] != expected[i];
+  }
+  EXPECT_EQ(r.bit_errors, errors);
+  std::sort(bers.begin(), bers.end());
+  EXPECT_DOUBLE_EQ(r.min_view_ber, bers.front());
+  EXPECT_DOUBLE_EQ(r.median_view_ber, bers[2]);
+  EXPECT_DOUBLE_EQ(r.max_view_ber, bers.back());
+  EXPECT_DOUBLE_EQ(r.p_value, BinomialTailPValue(48 - errors, 48));
+  const auto j = nlohmann::json::parse(ExtractionToJson(r));
+  EXPECT_EQ(j["bit_errors"], errors);
+  EXPECT_EQ(j["recovered_bits"], BitsToString(r.recovered));
+}
+
+// An unmarked model tested against many claimed messages: the verdict is
+// never "present" (its false-positive rate is 1e-6 per claim).
+TEST(Extractor, RawModelDoesNotClaimTheWatermark) {
+  ExtractScene s;
+  Decoder decoder(&s.net);
+  auto rasterizer = MakeCpuRasterizer();
+  std::mt19937 rng(4);
+  for (int trial = 0; trial < 10; ++trial) {
+    Bits claimed(48);
+    for (auto& b : claimed) b = rng() & 1;
+    const ExtractionResult r =
+        ExtractWatermark(*rasterizer, s.model, s.cameras, s.names, decoder,
+                         &claimed, {0, 0, 0}, VerificationThresholds{});
+    EXPECT_NE(r.verdict, Verdict::kPresent) << "trial " << trial;
+    EXPECT_GT(r.p_value, 1e-6);
+  }
+}
+
+TEST(Extractor, RefusesAnExpectedMessageOfTheWrongLength) {
+  ExtractScene s;
+  Decoder decoder(&s.net);
+  auto rasterizer = MakeCpuRasterizer();
+  const Bits short_message(40, 1);
+  EXPECT_THROW(
+      ExtractWatermark(*rasterizer, s.model, s.cameras, s.names, decoder,
+                       &short_message, {0, 0, 0}, VerificationThresholds{}),
+      Error);
+}
+
+TEST(Extractor, FreeViewpointsLieBetweenTheCameras) {
+  ExtractScene s;
+  const std::vector<RenderCamera> free = SampleFreeViewpoints(s.views, 12, 1);
+  ASSERT_EQ(free.size(), 12u);
+  for (const RenderCamera& cam : free) {
+    EXPECT_NEAR(
+        (cam.R * cam.R.transpose() - Eigen::Matrix3d::Identity()).norm(), 0,
+        1e-9);
+    EXPECT_NEAR(cam.R.determinant(), 1, 1e-9);
+    // Cameras sit on a circle of radius 3 (height 0.5): chords lie inside.
+    const Eigen::Vector3d c = cam.Center();
+    EXPECT_LE(c.head<2>().norm(), 3 + 1e-9);
+    EXPECT_NEAR(c.z(), 0.5, 1e-9);
+    EXPECT_EQ(cam.width, 32);
+  }
+  const auto again = SampleFreeViewpoints(s.views, 12, 1);
+  EXPECT_EQ(again[5].t, free[5].t);
+}
+
+}  // namespace
+}  // namespace watergs

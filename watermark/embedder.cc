@@ -1,0 +1,467 @@
+// WATER-GS watermark embedding (see embedder.h).
+#include "watermark/embedder.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "gaussian/checkpoint.h"
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "gaussian/progress.h"
+#include "gaussian/projection.h"
+#include "watermark/nn_layers.h"
+#include "watermark/tensor.h"
+
+namespace watergs {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+int CountBitErrors(const std::vector<float>& logits, const Bits& message) {
+  // Logit > 0 reads bit 1.
+  int errors = 0;
+  for (size_t i = 0; i < message.size(); ++i) {
+    errors += (logits[i] > 0 ? 1 : 0) != message[i];
+  }
+  return errors;
+}
+
+// Adds scale * `patch` into `target` at rect's offset.
+void AddPatch(const ImageRGB& patch, const PixelRect& rect, float scale,
+              ImageRGB* target) {
+  for (int y = 0; y < rect.height; ++y) {
+    const float* src = patch.At(0, y);
+    float* dst = target->At(rect.x0, rect.y0 + y);
+    for (int k = 0; k < 3 * rect.width; ++k) dst[k] += scale * src[k];
+  }
+}
+
+}  // namespace
+
+double AddMessageLoss(Decoder& decoder, const ImageRGB& image,
+                      const PixelRect& crop, const std::vector<float>& targets,
+                      double gamma, ImageRGB* grad_image, int* bit_errors) {
+  ImageRGB cropped, grad;
+  if (!crop.empty()) CropImage(image, crop, &cropped);
+  const ImageRGB& decoded = crop.empty() ? image : cropped;
+  const std::vector<float> logits = decoder.Logits(decoded);
+  if (logits.size() != targets.size()) {
+    Fail("message loss: the decoder reads " + std::to_string(logits.size()) +
+         " bits, the message has " + std::to_string(targets.size()));
+  }
+  Tensor logit_tensor(1, static_cast<int>(logits.size()), 1, 1);
+  logit_tensor.data = logits;
+  Tensor dlogits;
+  const double bce = BceWithLogits(logit_tensor, targets, &dlogits);
+  if (bit_errors) {
+    *bit_errors = 0;
+    for (size_t i = 0; i < targets.size(); ++i) {
+      *bit_errors += (logits[i] > 0) != (targets[i] > 0.5f);
+    }
+  }
+  for (float& g : dlogits.data) g *= static_cast<float>(gamma);
+  decoder.InputGradient(decoded, dlogits.data, &grad);
+  AddPatch(grad,
+           crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop,
+           1.f, grad_image);
+  return bce;
+}
+
+double MessageLossGradient(Rasterizer& rasterizer, const GaussianModel& model,
+                           const RenderCamera& camera,
+                           const RenderOptions& options, const PixelRect& crop,
+                           Decoder& decoder, const std::vector<float>& targets,
+                           double gamma, GaussianGradients* grads) {
+  ImageRGB image;
+  std::unique_ptr<RenderContext> context;
+  rasterizer.Forward(model, camera, options, &image, &context);
+  ImageRGB grad_image(image.width, image.height);
+  const double bce = AddMessageLoss(decoder, image, crop, targets, gamma,
+                                    &grad_image, nullptr);
+  if (grads) rasterizer.Backward(model, *context, grad_image, grads);
+  return gamma * bce;
+}
+
+std::array<bool, kNumParamGroups> ParseParamMask(const std::string& text) {
+  std::array<bool, kNumParamGroups> mask{};
+  if (text == "ALL" || text == "all") {
+    mask.fill(true);
+    return mask;
+  }
+  std::istringstream in(text);
+  std::string name;
+  bool any = false;
+  while (std::getline(in, name, ',')) {
+    bool found = false;
+    for (int g = 0; g < kNumParamGroups; ++g) {
+      if (name == GroupName(static_cast<ParamGroup>(g))) {
+        mask[g] = true;
+        found = any = true;
+      }
+    }
+    if (!found) {
+      Fail("--mask: unknown parameter group '" + name +
+           "' (use ALL or xyz,f_dc,f_rest,opacity,scaling,rotation)");
+    }
+  }
+  if (!any) Fail("--mask: no parameter group given");
+  return mask;
+}
+
+EmbedOptions DefaultEmbedOptions(int64_t iterations) {
+  EmbedOptions o;
+  o.iterations = iterations;
+  o.adam.position_lr_init = 1.6e-5;
+  o.adam.position_lr_final = 1.6e-6;
+  o.adam.position_lr_max_steps = iterations;
+  o.density.densify_from_iter = 100;
+  o.density.densify_until_iter = iterations / 2;
+  o.density.opacity_reset_interval = iterations + 1;
+  return o;
+}
+
+void EmbedTimings::Add(const EmbedTimings& o) {
+  distortion += o.distortion;
+  render += o.render;
+  image_loss += o.image_loss;
+  decoder += o.decoder;
+  backward += o.backward;
+  density += o.density;
+  adam += o.adam;
+}
+
+void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out) {
+  out->width = rect.width;
+  out->height = rect.height;
+  out->data.resize(size_t(rect.width) * rect.height * 3);
+  for (int y = 0; y < rect.height; ++y) {
+    std::memcpy(out->At(0, y), image.At(rect.x0, rect.y0 + y),
+                sizeof(float) * 3 * rect.width);
+  }
+}
+
+Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
+                   std::vector<size_t> train_views, GaussianModel model,
+                   double scene_extent, Decoder* decoder, Bits message,
+                   std::unique_ptr<Rasterizer> rasterizer)
+    : options_(options),
+      views_(views),
+      train_views_(std::move(train_views)),
+      model_(std::move(model)),
+      scene_extent_(scene_extent),
+      decoder_(decoder),
+      message_(std::move(message)),
+      rasterizer_(std::move(rasterizer)),
+      adam_(options.adam, scene_extent),
+      loss_(options.beta),
+      rng_(options.seed) {
+  if (train_views_.empty()) Fail("embed: no training views");
+  for (size_t v : train_views_) {
+    if (v >= views_.NumViews()) Fail("embed: view index out of range");
+  }
+  if (static_cast<int>(message_.size()) != decoder_->NumBits()) {
+    Fail("embed: message has " + std::to_string(message_.size()) +
+         " bits, the decoder reads " + std::to_string(decoder_->NumBits()));
+  }
+  if (model_.size() == 0) Fail("embed: the model has no Gaussians");
+  targets_.assign(message_.begin(), message_.end());
+  if (!options_.distortions.empty()) {
+    sampler_ = std::make_unique<DistortionSampler>(options_.distortions);
+  }
+  // Density control changes every group of new Gaussians, so a partial mask
+  // (frozen groups bit-identical) runs without it.
+  const bool all_trainable =
+      std::all_of(options_.trainable.begin(), options_.trainable.end(),
+                  [](bool t) { return t; });
+  if (!all_trainable) options_.densify = false;
+  if (options_.densify) {
+    DensityOptions density = options_.density;
+    density.seed = options_.seed ^ 0x9e3779b97f4a7c15ull;
+    strategy_ = MakeInriaDensityStrategy(density, scene_extent_);
+  } else {
+    strategy_ = MakeFixedDensityStrategy();
+  }
+  adam_.Init(model_);
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    adam_.SetGroupEnabled(static_cast<ParamGroup>(g), options_.trainable[g]);
+  }
+  strategy_->Init(model_);
+  origin_.resize(model_.size());
+  for (size_t i = 0; i < origin_.size(); ++i) origin_[i] = int64_t(i);
+}
+
+std::string Embedder::RunSignature() const {
+  nlohmann::json j;
+  j["iterations"] = options_.iterations;
+  j["seed"] = options_.seed;
+  j["gamma"] = options_.gamma;
+  j["beta"] = options_.beta;
+  j["trainable"] = options_.trainable;
+  std::string layers;
+  for (const auto& spec : options_.distortions) layers += ToString(spec) + ",";
+  j["distortions"] = layers;
+  j["crop_size"] = options_.crop_size;
+  j["densify"] = options_.densify;
+  j["message"] = BitsToString(message_);
+  return j.dump();
+}
+
+size_t Embedder::NextView() {
+  return train_views_[rng_() % train_views_.size()];
+}
+
+PixelRect Embedder::SampleRect(int width, int height) {
+  PixelRect rect{0, 0, width, height};
+  if (options_.crop_size <= 0) return rect;
+  rect.width = std::min(options_.crop_size, width);
+  rect.height = std::min(options_.crop_size, height);
+  rect.x0 = static_cast<int>(rng_() % (width - rect.width + 1));
+  rect.y0 = static_cast<int>(rng_() % (height - rect.height + 1));
+  return rect;
+}
+
+void Embedder::ComputeRadii(const RenderCamera& camera) {
+  const ProjectionCamera cam = MakeProjectionCamera(camera);
+  const int64_t n = static_cast<int64_t>(model_.size());
+  radii_.assign(n, 0.f);
+#pragma omp parallel for schedule(static) if (n > 20000)
+  for (int64_t i = 0; i < n; ++i) {
+    if (!grads_.visible[i]) continue;
+    ProjectedGaussian p;
+    if (ProjectForward(cam, &model_.means[3 * i], &model_.log_scales[3 * i],
+                       &model_.quats[4 * i], &p)) {
+      radii_[i] = static_cast<float>(p.radius);
+    }
+  }
+}
+
+EmbedStepStats Embedder::Step() {
+  const int64_t it = iteration_ + 1;
+  EmbedStepStats stats;
+  stats.iteration = it;
+  adam_.SetIteration(it);
+  const size_t view = NextView();
+  const RenderCamera camera = views_.Camera(view);
+  const std::shared_ptr<const ImageRGB> truth = views_.Image(view);
+  const PixelRect crop = SampleRect(camera.width, camera.height);
+
+  // N(Θ): the identity renders the model itself (no copy, no scatter).
+  auto t0 = Clock::now();
+  const DistortionLayer* layer = sampler_ ? &sampler_->Sample(rng_) : nullptr;
+  const bool distort = layer && !layer->IsIdentity();
+  if (distort) layer->Apply(model_, rng_, &distorted_, &source_);
+  stats.distortion = layer ? ToString(layer->spec()) : "none";
+  const GaussianModel& rendered_model = distort ? distorted_ : model_;
+
+  auto t1 = Clock::now();
+  RenderOptions render_options;
+  render_options.background = options_.background;
+  if (!options_.full_frame_image_loss) render_options.rect = crop;
+  std::unique_ptr<RenderContext> context;
+  rasterizer_->Forward(rendered_model, camera, render_options, &render_,
+                       &context);
+  auto t2 = Clock::now();
+  const bool cropped = !render_options.rect.empty();
+  if (cropped) CropImage(*truth, crop, &truth_crop_);
+  stats.image =
+      loss_.Evaluate(render_, cropped ? truth_crop_ : *truth, &grad_image_);
+  auto t3 = Clock::now();
+
+  // Message term on the crop: BCE(m, D(crop)) and its image gradient.
+  PixelRect decoder_crop;
+  if (!cropped && options_.crop_size > 0) decoder_crop = crop;
+  stats.bce = AddMessageLoss(*decoder_, render_, decoder_crop, targets_,
+                             options_.gamma, &grad_image_, &stats.bit_errors);
+  stats.total = stats.image.total + options_.gamma * stats.bce;
+  auto t4 = Clock::now();
+  if (!std::isfinite(stats.total)) {
+    Fail("embed stopped at iteration " + std::to_string(it) +
+         ": the loss is not finite on view " + views_.Name(view));
+  }
+
+  if (distort) {
+    rasterizer_->Backward(rendered_model, *context, grad_image_,
+                          &distorted_grads_);
+    ScatterGradients(distorted_grads_, source_, model_.size(),
+                     model_.sh_rest_stride(), &grads_);
+    // The density statistic in NDC units follows its Gaussian as well.
+    grads_.mean2d_grad_norm_ndc.assign(model_.size(), 0.f);
+    for (size_t i = 0; i < source_.size(); ++i) {
+      grads_.mean2d_grad_norm_ndc[source_[i]] +=
+          distorted_grads_.mean2d_grad_norm_ndc[i];
+    }
+  } else {
+    rasterizer_->Backward(model_, *context, grad_image_, &grads_);
+  }
+  context.reset();
+  auto t5 = Clock::now();
+
+  const std::vector<float>* radii = nullptr;
+  if (strategy_->WantsRadii(it)) {
+    ComputeRadii(camera);
+    radii = &radii_;
+  }
+  const DensityEvent event =
+      strategy_->PostBackward(it, grads_, radii, &model_, &adam_);
+  if (event.densified) {
+    std::vector<int64_t> origin(event.parent.size());
+    for (size_t i = 0; i < origin.size(); ++i) {
+      origin[i] = event.parent[i] < 0 ? -1 : origin_[event.parent[i]];
+    }
+    origin_ = std::move(origin);
+  }
+  auto t6 = Clock::now();
+  if (!event.densified) adam_.Step(grads_, &model_);
+  auto t7 = Clock::now();
+
+  stats.timings.distortion = Seconds(t0, t1);
+  stats.timings.render = Seconds(t1, t2);
+  stats.timings.image_loss = Seconds(t2, t3);
+  stats.timings.decoder = Seconds(t3, t4);
+  stats.timings.backward = Seconds(t4, t5);
+  stats.timings.density = Seconds(t5, t6);
+  stats.timings.adam = Seconds(t6, t7);
+  total_timings_.Add(stats.timings);
+  stats.num_gaussians = model_.size();
+  iteration_ = it;
+  return stats;
+}
+
+CheckResult Embedder::Check(const std::vector<size_t>& views) {
+  CheckResult result;
+  if (views.empty()) return result;
+  RenderOptions render_options;
+  render_options.background = options_.background;
+  std::vector<double> mean_logits(message_.size(), 0.0);
+  ImageRGB image;
+  for (size_t view : views) {
+    rasterizer_->Forward(model_, views_.Camera(view), render_options, &image,
+                         nullptr);
+    for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+    const std::vector<float> logits = decoder_->Logits(image);
+    result.mean_ber += double(CountBitErrors(logits, message_)) /
+                       message_.size() / views.size();
+    for (size_t i = 0; i < logits.size(); ++i) mean_logits[i] += logits[i];
+    result.psnr += Psnr(image, *views_.Image(view)) / views.size();
+  }
+  std::vector<float> aggregate(mean_logits.begin(), mean_logits.end());
+  result.aggregate_ber =
+      double(CountBitErrors(aggregate, message_)) / message_.size();
+  return result;
+}
+
+bool Embedder::Run() {
+  std::unique_ptr<ProgressBar> bar;
+  if (options_.show_progress) {
+    bar =
+        std::make_unique<ProgressBar>("embed", options_.iterations, iteration_);
+  }
+  double loss_ema = -1, ber_ema = -1;
+  CheckResult last_check;
+  bool checked = false, stopped_early = false;
+  while (iteration_ < options_.iterations) {
+    const EmbedStepStats stats = Step();
+    const double ber = double(stats.bit_errors) / message_.size();
+    loss_ema = loss_ema < 0 ? stats.total : 0.9 * loss_ema + 0.1 * stats.total;
+    ber_ema = ber_ema < 0 ? ber : 0.95 * ber_ema + 0.05 * ber;
+    const int64_t it = stats.iteration;
+    if (options_.check_every > 0 && it % options_.check_every == 0 &&
+        !options_.check_views.empty()) {
+      last_check = Check(options_.check_views);
+      checked = true;
+      zero_ber_checks_ = last_check.mean_ber == 0 ? zero_ber_checks_ + 1 : 0;
+    }
+    if (options_.checkpoint_every > 0 && it % options_.checkpoint_every == 0 &&
+        !options_.checkpoint_path.empty()) {
+      SaveCheckpoint(options_.checkpoint_path);
+    }
+    if (bar) {
+      char status[160];
+      std::snprintf(status, sizeof(status),
+                    "loss %.4f  BER %.1f%%  %zu Gaussians", loss_ema,
+                    100 * ber_ema, stats.num_gaussians);
+      std::string line = status;
+      if (checked) {
+        std::snprintf(status, sizeof(status), "  check BER %.1f%% PSNR %.2f",
+                      100 * last_check.mean_ber, last_check.psnr);
+        line += status;
+      }
+      bar->Update(it, line);
+    }
+    if (options_.patience > 0 && zero_ber_checks_ >= options_.patience) {
+      stopped_early = true;
+      break;
+    }
+  }
+  if (bar) {
+    bar->Finish(stopped_early ? "stopped early: check BER 0" : "done");
+  }
+  return stopped_early;
+}
+
+void Embedder::SaveCheckpoint(const std::string& path) const {
+  TrainingCheckpoint c;
+  c.iteration = iteration_;
+  c.active_sh_degree = model_.sh_degree;
+  c.model = model_;
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    c.adam[g] = adam_.state(static_cast<ParamGroup>(g));
+  }
+  c.adam_rejected = adam_.rejected_total();
+  c.density_state = strategy_->SaveState();
+  std::ostringstream rng_text;
+  rng_text << rng_;
+  // The RNG and the descent of each Gaussian from the input, as JSON.
+  nlohmann::json extra;
+  extra["rng"] = rng_text.str();
+  extra["origin"] = origin_;
+  extra["zero_ber_checks"] = zero_ber_checks_;
+  c.rng_state = extra.dump();
+  c.run_signature = RunSignature();
+  WriteCheckpoint(path, c);
+}
+
+void Embedder::Resume(const std::string& path) {
+  TrainingCheckpoint c = ReadCheckpoint(path);
+  if (c.run_signature != RunSignature()) {
+    FailAt(path, "checkpoint was written by an embed run with other options");
+  }
+  if (c.model.sh_degree != model_.sh_degree) {
+    FailAt(path, "checkpoint SH degree differs from the input model's");
+  }
+  const auto extra = nlohmann::json::parse(c.rng_state, nullptr, false);
+  if (extra.is_discarded() || !extra.contains("rng") ||
+      !extra.contains("origin")) {
+    FailAt(path, "not an embed checkpoint");
+  }
+  model_ = std::move(c.model);
+  adam_.Init(model_);
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    AdamGroupState& s = adam_.state(static_cast<ParamGroup>(g));
+    if (c.adam[g].exp_avg.size() != s.exp_avg.size()) {
+      FailAt(path, "checkpoint optimiser state does not match its model");
+    }
+    s = std::move(c.adam[g]);
+  }
+  adam_.set_rejected_total(c.adam_rejected);
+  strategy_->Init(model_);
+  strategy_->LoadState(c.density_state);
+  std::istringstream rng_in(extra["rng"].get<std::string>());
+  rng_in >> rng_;
+  origin_ = extra["origin"].get<std::vector<int64_t>>();
+  zero_ber_checks_ = extra.value("zero_ber_checks", 0);
+  if (!rng_in || origin_.size() != model_.size()) {
+    FailAt(path, "checkpoint state is corrupt");
+  }
+  iteration_ = c.iteration;
+}
+
+}  // namespace watergs

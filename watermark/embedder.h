@@ -1,0 +1,199 @@
+// WATER-GS watermark embedding (paper, Algorithm 1): fine-tunes a trained
+// 3DGS model so that the frozen decoder reads the owner's message from its
+// renders. Per iteration: a training view, one sampled 3D distortion layer N,
+// a render of N(Θ) (a random crop when the decoder term suffices), the loss
+// (1 - β) L1 + β (1 - SSIM) + γ BCE(m, D(render)), gradients back through the
+// decoder's input gradient, the rasterizer and the distortion's scatter, then
+// Adam restricted to the mask's parameter groups and (optionally) adaptive
+// density control. Composes gaussian/ pieces; knows nothing of COLMAP.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "distortion/distortion_layer.h"
+#include "gaussian/adam.h"
+#include "gaussian/density_strategy.h"
+#include "gaussian/loss.h"
+#include "gaussian/rasterizer.h"
+#include "gaussian/trainer.h"
+#include "watermark/decoder.h"
+#include "watermark/message.h"
+
+namespace watergs {
+
+// Parses "ALL" or a comma list of xyz,f_dc,f_rest,opacity,scaling,rotation
+// into one trainable flag per ParamGroup; throws Error on unknown names.
+std::array<bool, kNumParamGroups> ParseParamMask(const std::string& text);
+
+struct EmbedOptions {
+  // Fine-tuning iterations (paper: 10k to 30k).
+  int64_t iterations = 10000;
+  // Weight of the message loss (paper: 0.3; 0.1 for forward-facing scenes).
+  double gamma = 0.3;
+  // Weight of D-SSIM in the image loss.
+  double beta = 0.2;
+  // Trainable parameter groups (ParamGroup order); frozen ones stay
+  // bit-identical.
+  std::array<bool, kNumParamGroups> trainable = {true, true, true,
+                                                 true, true, true};
+  // Distortion layers sampled per iteration; empty = none (plain render).
+  std::vector<DistortionSpec> distortions;
+  // Side of the random square crop rendered per iteration (clamped to the
+  // frame); 0 renders whole frames.
+  int crop_size = 128;
+  // Render the whole frame for the image loss and give the decoder only the
+  // crop (instead of rendering just the crop for both terms).
+  bool full_frame_image_loss = false;
+  // BER over the check views is evaluated every check_every iterations;
+  // fine-tuning stops after `patience` consecutive checks at BER 0 (0 = never
+  // stop early).
+  int64_t check_every = 200;
+  int patience = 2;
+  // Views (indices into the source) decoded at each check (whole frames).
+  std::vector<size_t> check_views;
+  // Adaptive density control during fine-tuning (as in training); ignored
+  // (off) when a group is frozen, since new Gaussians change every group.
+  bool densify = true;
+  DensityOptions density;
+  // Optimiser rates; positions decay from position_lr_init to _final over
+  // the run (a converged model needs only small moves).
+  AdamOptions adam;
+  // Seeds views, crops, distortions and density control.
+  uint64_t seed = 0;
+  // Colour behind the Gaussians and the SH degree used.
+  std::array<float, 3> background = {0.f, 0.f, 0.f};
+  // Checkpoint file and period (0 = only at the end if a path is given).
+  std::string checkpoint_path;
+  int64_t checkpoint_every = 0;
+  // Draw a progress bar on stderr.
+  bool show_progress = false;
+};
+
+// Defaults for fine-tuning: Inria's rates with the position rate starting
+// where training ended, density control from iteration 100 to half the run
+// without opacity resets (a reset would erase the scene being marked).
+EmbedOptions DefaultEmbedOptions(int64_t iterations);
+
+// Seconds of one iteration per stage.
+struct EmbedTimings {
+  double distortion = 0, render = 0, image_loss = 0, decoder = 0, backward = 0,
+         density = 0, adam = 0;
+  double Total() const {
+    return distortion + render + image_loss + decoder + backward + density +
+           adam;
+  }
+  void Add(const EmbedTimings& o);
+};
+
+// Figures of one iteration.
+struct EmbedStepStats {
+  int64_t iteration = 0;
+  // Image loss terms of the rendered region and the BCE of the message.
+  LossTerms image;
+  double bce = 0;
+  // Total loss and bit errors of this iteration's decoded render.
+  double total = 0;
+  int bit_errors = 0;
+  // Name of the distortion layer used ("none" without layers).
+  std::string distortion;
+  size_t num_gaussians = 0;
+  EmbedTimings timings;
+};
+
+// Result of decoding whole-frame renders of some views.
+struct CheckResult {
+  // Mean over views of each view's bit error rate.
+  double mean_ber = 0;
+  // Bit error rate of the mean logits over the views.
+  double aggregate_ber = 0;
+  // Mean PSNR of the renders against ground truth.
+  double psnr = 0;
+};
+
+class Embedder {
+ public:
+  // `views` (outliving the embedder) supplies cameras and images;
+  // `train_views` index into it. `decoder` is used frozen and must read
+  // message.size() bits.
+  Embedder(const EmbedOptions& options, const TrainingViews& views,
+           std::vector<size_t> train_views, GaussianModel model,
+           double scene_extent, Decoder* decoder, Bits message,
+           std::unique_ptr<Rasterizer> rasterizer);
+
+  // One fine-tuning iteration. Throws Error on a non-finite loss.
+  EmbedStepStats Step();
+  // Steps until options.iterations or early stop; writes checkpoints and
+  // progress. Returns true if it stopped early.
+  bool Run();
+  // Decodes whole-frame renders of `views`.
+  CheckResult Check(const std::vector<size_t>& views);
+
+  // Restores a checkpoint written by a run with the same options.
+  void Resume(const std::string& path);
+  void SaveCheckpoint(const std::string& path) const;
+
+  const GaussianModel& model() const { return model_; }
+  // For each Gaussian now, the index of the input Gaussian it descends from.
+  const std::vector<int64_t>& origin() const { return origin_; }
+  int64_t iteration() const { return iteration_; }
+  // Sum of per-stage seconds over all iterations so far.
+  const EmbedTimings& total_timings() const { return total_timings_; }
+  Rasterizer& rasterizer() { return *rasterizer_; }
+
+ private:
+  std::string RunSignature() const;
+  size_t NextView();
+  PixelRect SampleRect(int width, int height);
+  void ComputeRadii(const RenderCamera& camera);
+
+  EmbedOptions options_;
+  const TrainingViews& views_;
+  std::vector<size_t> train_views_;
+  GaussianModel model_;
+  double scene_extent_;
+  Decoder* decoder_;
+  Bits message_;
+  std::vector<float> targets_;
+  std::unique_ptr<Rasterizer> rasterizer_;
+  std::unique_ptr<DistortionSampler> sampler_;
+  std::unique_ptr<DensityStrategy> strategy_;
+  Adam adam_;
+  TrainingLoss loss_;
+  std::mt19937_64 rng_;
+  std::vector<int64_t> origin_;
+  int64_t iteration_ = 0;
+  int zero_ber_checks_ = 0;
+  EmbedTimings total_timings_;
+  // Reused per-iteration buffers.
+  GaussianModel distorted_;
+  std::vector<uint32_t> source_;
+  ImageRGB render_, truth_crop_, grad_image_;
+  GaussianGradients grads_, distorted_grads_;
+  std::vector<float> radii_;
+};
+
+// Copies rect of `image` into `out` (resized).
+void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out);
+
+// The message term on a render: returns BCE(targets, D(image[crop])) (crop
+// in image pixels, empty = all of it) and adds gamma * d BCE / d image into
+// grad_image (image's shape); bit_errors (if not null) gets the errors of
+// the decoded bits.
+double AddMessageLoss(Decoder& decoder, const ImageRGB& image,
+                      const PixelRect& crop, const std::vector<float>& targets,
+                      double gamma, ImageRGB* grad_image, int* bit_errors);
+
+// gamma * BCE(targets, D(render(model)[crop])) and its gradient w.r.t. the
+// model, the render taken over options.rect (as Step does); for checks.
+double MessageLossGradient(Rasterizer& rasterizer, const GaussianModel& model,
+                           const RenderCamera& camera,
+                           const RenderOptions& options, const PixelRect& crop,
+                           Decoder& decoder, const std::vector<float>& targets,
+                           double gamma, GaussianGradients* grads);
+
+}  // namespace watergs

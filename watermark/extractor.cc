@@ -1,0 +1,120 @@
+// WATER-GS watermark extraction and verification (see extractor.h).
+#include "watermark/extractor.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "gaussian/error.h"
+
+namespace watergs {
+
+std::vector<RenderCamera> SampleFreeViewpoints(const TrainingViews& views,
+                                               int n, uint64_t seed) {
+  if (views.NumViews() == 0) Fail("extract: no cameras to sample around");
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<RenderCamera> out;
+  for (int k = 0; k < n; ++k) {
+    const RenderCamera a = views.Camera(rng() % views.NumViews());
+    const RenderCamera b = views.Camera(rng() % views.NumViews());
+    const double t = uniform(rng);
+    RenderCamera cam = a;
+    const Eigen::Quaterniond qa(a.R), qb(b.R);
+    cam.R = qa.slerp(t, qb).normalized().toRotationMatrix();
+    const Eigen::Vector3d center = (1 - t) * a.Center() + t * b.Center();
+    cam.t = -cam.R * center;
+    out.push_back(cam);
+  }
+  return out;
+}
+
+ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
+                                  const GaussianModel& model,
+                                  const std::vector<RenderCamera>& cameras,
+                                  const std::vector<std::string>& names,
+                                  Decoder& decoder, const Bits* expected,
+                                  const std::array<float, 3>& background,
+                                  const VerificationThresholds& thresholds) {
+  const int num_bits = decoder.NumBits();
+  if (cameras.empty()) Fail("extract: no views to render");
+  if (expected && static_cast<int>(expected->size()) != num_bits) {
+    Fail("extract: expected message has " + std::to_string(expected->size()) +
+         " bits, the decoder reads " + std::to_string(num_bits));
+  }
+  ExtractionResult result;
+  result.thresholds = thresholds;
+  result.mean_logits.assign(num_bits, 0.f);
+  RenderOptions options;
+  options.background = background;
+  ImageRGB image;
+  std::vector<double> view_ber;
+  for (size_t k = 0; k < cameras.size(); ++k) {
+    rasterizer.Forward(model, cameras[k], options, &image, nullptr);
+    for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+    ViewDecode view;
+    view.name = k < names.size() ? names[k] : "free_" + std::to_string(k);
+    view.logits = decoder.Logits(image);
+    for (int i = 0; i < num_bits; ++i) {
+      result.mean_logits[i] += view.logits[i] / cameras.size();
+    }
+    if (expected) {
+      Bits bits(num_bits);
+      for (int i = 0; i < num_bits; ++i) bits[i] = view.logits[i] > 0;
+      view.bit_errors = HammingDistance(bits, *expected);
+      view_ber.push_back(double(view.bit_errors) / num_bits);
+    }
+    result.views.push_back(std::move(view));
+  }
+  result.recovered.resize(num_bits);
+  for (int i = 0; i < num_bits; ++i) {
+    result.recovered[i] = result.mean_logits[i] > 0;
+  }
+  if (expected) {
+    result.has_expected = true;
+    result.expected = *expected;
+    result.bit_errors = HammingDistance(result.recovered, *expected);
+    result.ber = double(result.bit_errors) / num_bits;
+    std::sort(view_ber.begin(), view_ber.end());
+    result.min_view_ber = view_ber.front();
+    result.max_view_ber = view_ber.back();
+    const size_t m = view_ber.size();
+    result.median_view_ber =
+        m % 2 ? view_ber[m / 2] : 0.5 * (view_ber[m / 2 - 1] + view_ber[m / 2]);
+    result.p_value = BinomialTailPValue(num_bits - result.bit_errors, num_bits);
+    result.verdict = Decide(result.p_value, thresholds);
+  }
+  return result;
+}
+
+std::string ExtractionToJson(const ExtractionResult& r) {
+  nlohmann::json j;
+  j["num_bits"] = r.recovered.size();
+  j["recovered_hex"] = BitsToHex(r.recovered);
+  j["recovered_bits"] = BitsToString(r.recovered);
+  j["num_views"] = r.views.size();
+  j["mean_logits"] = r.mean_logits;
+  if (r.has_expected) {
+    j["expected_bits"] = BitsToString(r.expected);
+    j["bit_errors"] = r.bit_errors;
+    j["ber"] = r.ber;
+    j["view_ber"] = {{"min", r.min_view_ber},
+                     {"median", r.median_view_ber},
+                     {"max", r.max_view_ber}};
+    j["p_value"] = r.p_value;
+    j["verdict"] = ToString(r.verdict);
+    j["false_positive_rate"] = r.thresholds.present_p;
+    j["absent_above_p"] = r.thresholds.absent_p;
+  }
+  nlohmann::json views = nlohmann::json::array();
+  for (const ViewDecode& v : r.views) {
+    nlohmann::json e = {{"name", v.name}};
+    if (v.bit_errors >= 0) e["bit_errors"] = v.bit_errors;
+    views.push_back(e);
+  }
+  j["views"] = views;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace watergs

@@ -1,0 +1,72 @@
+// WATER-GS watermark extraction and verification: renders a model from some
+// viewpoints, decodes each render with the frozen decoder, averages the
+// logits over views into one recovered message and, given the claimed
+// message, tests it against the null hypothesis of an unmarked model
+// (binomial p-value, verdict at a documented false-positive rate).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "gaussian/camera.h"
+#include "gaussian/gaussian_model.h"
+#include "gaussian/rasterizer.h"
+#include "gaussian/trainer.h"
+#include "watermark/decoder.h"
+#include "watermark/message.h"
+#include "watermark/verification.h"
+
+namespace watergs {
+
+// One decoded view.
+struct ViewDecode {
+  // View name (workspace image name or "free_<k>").
+  std::string name;
+  // L logits of this view's render.
+  std::vector<float> logits;
+  // Bit errors against the expected message (-1 without one).
+  int bit_errors = -1;
+};
+
+struct ExtractionResult {
+  // Mean logits over views and the bits they read (logit > 0 -> 1).
+  std::vector<float> mean_logits;
+  Bits recovered;
+  // Per view.
+  std::vector<ViewDecode> views;
+  // Against the expected message (only when one was given).
+  bool has_expected = false;
+  Bits expected;
+  int bit_errors = 0;
+  double ber = 0;
+  // Spread of per-view BER.
+  double min_view_ber = 0, median_view_ber = 0, max_view_ber = 0;
+  // P[at least this many matching bits | unmarked model].
+  double p_value = 1;
+  Verdict verdict = Verdict::kInconclusive;
+  VerificationThresholds thresholds;
+};
+
+// `n` viewpoints between the cameras of `views`: each interpolates position
+// (linearly) and orientation (slerp) between two random cameras at a random
+// fraction, keeping the first one's intrinsics. Deterministic for a seed.
+std::vector<RenderCamera> SampleFreeViewpoints(const TrainingViews& views,
+                                               int n, uint64_t seed);
+
+// Renders `model` from each camera (whole frames, clamped to [0, 1]), decodes
+// and aggregates; `expected` (may be null) must have the decoder's length.
+ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
+                                  const GaussianModel& model,
+                                  const std::vector<RenderCamera>& cameras,
+                                  const std::vector<std::string>& names,
+                                  Decoder& decoder, const Bits* expected,
+                                  const std::array<float, 3>& background,
+                                  const VerificationThresholds& thresholds);
+
+// The result as JSON text (recovered hex/bits, BER, spread, p-value, verdict,
+// per-view BER).
+std::string ExtractionToJson(const ExtractionResult& result);
+
+}  // namespace watergs
