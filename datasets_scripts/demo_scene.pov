@@ -43,7 +43,7 @@ sky_sphere { pigment { gradient y color_map { [0 color rgb <0.85, 0.9, 1.0>] [1 
             finish { diffuse 0.8 } }
 #end
 
-// Textures for the backdrop panels; each panel differs so SIFT matches are unambiguous.
+// Variant 1's panels: eight textures, each used twice (on opposite sides of the ring).
 #macro PanelTexture(Index, Width, Height)
   #switch (mod(Index, 8))
     #case (0) PanelImage("Mount1.png", Width, Height) #break
@@ -59,12 +59,32 @@ sky_sphere { pigment { gradient y color_map { [0 color rgb <0.85, 0.9, 1.0>] [1 
   #end
 #end
 
+// Variant 2's panels: twelve different textures, so no two panels look alike (identical panels in a ring
+// give SIFT matches between unrelated views).
+#macro PanelTexture2(Index, Width, Height)
+  #switch (Index)
+    #case (0) PanelImage("Mount2.png", Width, Height) #break
+    #case (1) texture { pigment { crackle color_map { [0 color rgb 0.1] [0.05 color rgb <0.9, 0.8, 0.5>] [1 color rgb <0.6, 0.4, 0.2>] } scale 0.3 } finish { diffuse 0.8 } } #break
+    #case (2) PanelImage("povmap.png", Width, Height) #break
+    #case (3) texture { T_Stone9 scale 0.8 } #break
+    #case (4) PanelImage("bumpmap_.png", Width, Height) #break
+    #case (5) texture { pigment { Sapphire_Agate scale 0.5 } finish { diffuse 0.8 } } #break
+    #case (6) texture { pigment { brick color rgb <0.9, 0.9, 0.8> color rgb <0.2, 0.3, 0.6> brick_size <0.5, 0.2, 0.3> mortar 0.03 } finish { diffuse 0.8 } }
+              texture { pigment { granite color_map { [0 rgbt <0, 0, 0, 1>] [0.5 rgbt <0, 0, 0, 1>] [1 rgbt <0.3, 0, 0, 0.3>] } scale 0.5 } } #break
+    #case (7) texture { pigment { wrinkles turbulence 0.5 color_map { [0 color rgb <0.9, 0.2, 0.3>] [0.5 color rgb <1, 0.9, 0.3>] [1 color rgb <0.1, 0.5, 0.2>] } scale 0.4 } finish { diffuse 0.8 } } #break
+    #case (8) PanelImage("fract003.png", Width, Height) #break
+    #case (9) texture { T_Stone21 scale 0.6 } #break
+    #case (10) texture { pigment { Brown_Agate scale 0.5 } finish { diffuse 0.8 } } #break
+    #else texture { pigment { bozo turbulence 0.4 color_map { [0 color rgb <0.1, 0.2, 0.6>] [0.3 color rgb 0.9] [0.6 color rgb <0.5, 0.1, 0.5>] [1 color rgb <0.1, 0.6, 0.6>] } scale 0.25 } finish { diffuse 0.8 } }
+  #end
+#end
+
 // A ring of vertical panels far behind the objects: gives every view distant texture.
 #macro Backdrop(Radius, Height, Count, Phase)
   #local Width = 2 * Radius * tan(pi / Count) + 0.05;
   #for (Index, 0, Count - 1)
     box { <-Width / 2, 0, 0>, <Width / 2, Height, 0.3>
-      PanelTexture(Index + Phase, Width, Height)
+      #if (Variant = 1) PanelTexture(Index + Phase, Width, Height) #else PanelTexture2(Index, Width, Height) #end
       translate <0, 0, Radius> rotate y * (360 * Index / Count)
     }
   #end
@@ -115,7 +135,7 @@ sky_sphere { pigment { gradient y color_map { [0 color rgb <0.85, 0.9, 1.0>] [1 
       pigment { hexagon
         pigment { bozo turbulence 0.6 color_map { [0 color rgb <0.8, 0.3, 0.2>] [0.5 color rgb <0.95, 0.85, 0.6>] [1 color rgb <0.3, 0.1, 0.1>] } scale 0.2 }
         pigment { granite color_map { [0 color rgb <0.2, 0.3, 0.5>] [1 color rgb <0.8, 0.85, 0.95>] } scale 0.8 }
-        pigment { leopard color_map { [0 color rgb <0.1, 0.4, 0.1>] [1 color rgb <0.9, 0.95, 0.5>] } turbulence 0.5 scale 0.1 }
+        pigment { leopard color_map { [0 color rgb <0.1, 0.4, 0.1>] [1 color rgb <0.9, 0.95, 0.5>] } turbulence 0.5 scale 0.4 }
         scale 0.6 }
       finish { diffuse 0.85 }
     }

@@ -10,8 +10,8 @@
 #     out_dir/ground_truth/{cameras,images,points3D}.txt   the POV-Ray poses as a COLMAP text model
 #                                                          (world = POV-Ray (x, z, y), z up; match by NAME)
 # --debug keeps COLMAP's database and logs (OUT_DIR/logs), or the scratch folder of a failed run.
-# Needs: povray, povray-includes, colmap (3.8), python3. Deterministic: single-threaded matching and mapping,
-# fixed COLMAP seed; the same machine gives byte-identical output.
+# Needs: povray, povray-includes, colmap (3.8), python3. Meant to be deterministic: single-threaded
+# rendering, matching and mapping, COLMAP's fixed default seed (see README for what was checked).
 set -euo pipefail
 
 script_dir="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -59,9 +59,10 @@ num_views=$(wc -l <"$work/views.txt")
 
 echo "make_demo_scene: rendering $num_views views at ${width}x${height} with POV-Ray"
 while read -r name cam_x cam_y cam_z look_x look_y look_z; do
-  # POV-Ray writes the render date into JPEG comments; strip it so output is reproducible.
+  # One render thread: POV-Ray's multithreaded antialiasing gives slightly different pixels from run to
+  # run. POV-Ray writes the render date into JPEG comments; strip it so output is reproducible.
   povray -I"$script_dir/demo_scene.pov" +O"$work/images/$name" +FJ Compression=$jpeg_quality \
-    +W$width +H$height -D -V +A0.3 +R3 +WT"$threads" \
+    +W$width +H$height -D -V +A0.3 +R3 +WT1 \
     Declare=Variant="$variant" Declare=FovDeg=$fov_deg \
     Declare=CamX="$cam_x" Declare=CamY="$cam_y" Declare=CamZ="$cam_z" \
     Declare=LookX="$look_x" Declare=LookY="$look_y" Declare=LookZ="$look_z" \
@@ -104,7 +105,7 @@ if [ ! -f "$work/sparse/0/images.bin" ]; then
   echo "make_demo_scene: COLMAP produced no model" >&2; exit 1
 fi
 if [ -d "$work/sparse/1" ]; then
-  echo "make_demo_scene: COLMAP split the scene into several models ($(ls "$work/sparse" | tr '\n' ' '))" >&2
+  echo "make_demo_scene: COLMAP split the scene into several models ($(find "$work/sparse" -mindepth 1 -maxdepth 1 -printf '%f '))" >&2
   exit 1
 fi
 rm -f "$work/sparse/0/project.ini"
