@@ -1,0 +1,144 @@
+// CLI tests of `watergs embed` and `watergs extract` on a small synthetic
+// COLMAP workspace with a tiny random decoder: output layout, verdict output,
+// JSON, and one-line errors for bad input.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "gaussian/file_util.h"
+#include "gaussian/ply_io.h"
+#include "gaussian/point_init.h"
+#include "gaussian/rasterizer.h"
+#include "plugin/reconstruction_io.h"
+#include "plugin/training_views.h"
+#include "plugin/workspace.h"
+#include "synthetic_model.h"
+#include "watermark/hidden_model.h"
+
+namespace watergs {
+namespace {
+
+using testing::RunCommand;
+using testing::TempDir;
+using testing::WatergsBin;
+
+// WS/sparse/0 (6 pinhole views, 48x36), WS/images rendered from `truth`
+// (Gaussians at the SfM points, returned).
+std::string MakeWorkspace(const TempDir& dir, GaussianModel* truth) {
+  testing::SyntheticModelOptions options;
+  options.num_images = 6;
+  options.num_points = 150;
+  options.width = 48;
+  options.height = 36;
+  const Reconstruction model = testing::MakeSyntheticReconstruction(options);
+  const std::string ws = dir / "ws";
+  WriteReconstruction(model, ws + "/sparse/0", ModelFormat::kText);
+  CreateDirectories(ws + "/images");
+  for (const auto& [id, image] : model.Images()) {
+    WritePng(ws + "/images/" + image.name, ImageRGB(48, 36));
+  }
+  WorkspaceOptions wo;
+  wo.workspace_path = ws;
+  const Workspace workspace = Workspace::Open(wo);
+  std::vector<float> xyz, rgb;
+  workspace.PointCloud(&xyz, &rgb);
+  *truth = InitGaussiansFromPoints(xyz, rgb, 1);
+  for (float& logit : truth->opacity_logits) logit = 2.f;
+  auto rasterizer = MakeCpuRasterizer();
+  for (size_t v = 0; v < workspace.NumViews(); ++v) {
+    ImageRGB image;
+    rasterizer->Forward(*truth, workspace.ViewCamera(v), RenderOptions{},
+                        &image, nullptr);
+    WritePng(ws + "/images/" + workspace.ViewName(v), image);
+  }
+  return ws;
+}
+
+// A one-line error naming `what`, non-zero exit.
+void ExpectOneLineError(const testing::CommandResult& run,
+                        const std::string& what) {
+  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find(what), std::string::npos) << run.output;
+  EXPECT_LE(std::count(run.output.begin(), run.output.end(), '\n'), 1)
+      << run.output;
+}
+
+TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
+  TempDir dir("embed_cli");
+  GaussianModel truth;
+  const std::string ws = MakeWorkspace(dir, &truth);
+  // Input PLY in a non-default layout: ASCII with non-zero normals.
+  PlyLayout layout = InriaPlyLayout(1, truth.size());
+  layout.format = PlyFormat::kAscii;
+  for (size_t k = 0; k < layout.extra_values.size(); ++k) {
+    layout.extra_values[k] = 0.25 * double(k % 7);
+  }
+  const std::string raw = dir / "raw.ply";
+  WritePly(raw, truth, layout);
+  HiddenConfig config;
+  config.num_bits = 16;
+  config.channels = 6;
+  config.encoder_blocks = 1;
+  config.decoder_blocks = 2;
+  HiddenModel net(config, false, 3);
+  const std::string decoder = dir / "decoder.bin";
+  SaveHiddenModel(decoder, net, false);
+
+  const std::string wm = dir / "wm.ply";
+  const std::string base = WatergsBin() + " embed --input_path " + raw +
+                           " --workspace_path " + ws + " --decoder " + decoder;
+  const auto run = RunCommand(base + " --message hex:a5c3 --output_path " + wm +
+                              " --iterations 12 --crop_size 24 --densify off "
+                              "--check_every 6 --check_views 2 --num_threads "
+                              "2");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("per iteration"), std::string::npos);
+  const PlyData in = ReadPly(raw);
+  const PlyData out = ReadPly(wm);
+  EXPECT_EQ(out.layout.format, PlyFormat::kAscii);
+  ASSERT_EQ(out.layout.properties.size(), in.layout.properties.size());
+  for (size_t k = 0; k < in.layout.properties.size(); ++k) {
+    EXPECT_EQ(out.layout.properties[k].name, in.layout.properties[k].name);
+    EXPECT_EQ(out.layout.properties[k].type, in.layout.properties[k].type);
+  }
+  EXPECT_EQ(out.layout.extra_values, in.layout.extra_values);
+  EXPECT_EQ(out.model.sh_degree, 1);
+  EXPECT_NE(out.model.sh_dc, in.model.sh_dc);
+
+  // Extraction: a verdict (any) is exit 0, with the JSON written.
+  const std::string json = dir / "extract.json";
+  const auto extract = RunCommand(
+      WatergsBin() + " extract --input_path " + raw + " --workspace_path " +
+      ws + " --decoder " + decoder + " --message hex:a5c3 --json " + json);
+  ASSERT_EQ(extract.exit_code, 0) << extract.output;
+  EXPECT_NE(extract.output.find("verdict:"), std::string::npos);
+  std::ifstream json_in(json);
+  const auto j = nlohmann::json::parse(json_in);
+  EXPECT_EQ(j["num_views"], 6);
+  EXPECT_EQ(j["expected_bits"], "1010010111000011");
+  EXPECT_NE(j["verdict"], "watermark present");
+
+  // Bad input: one line naming the problem, no output written.
+  const std::string bad_out = dir / "bad.ply";
+  ExpectOneLineError(
+      RunCommand(WatergsBin() + " embed --input_path " + raw +
+                 " --workspace_path " + ws + " --decoder " + raw +
+                 " --message hex:a5 --output_path " + bad_out),
+      raw);
+  ExpectOneLineError(
+      RunCommand(base + " --message hex:a5c3f --output_path " + bad_out),
+      "decoder reads");
+  ExpectOneLineError(
+      RunCommand(base + " --message bits:01 --mask xyz,colour --output_path " +
+                 bad_out),
+      "colour");
+  ExpectOneLineError(RunCommand(WatergsBin() + " extract --input_path " + wm +
+                                " --workspace_path " + ws + " --decoder " +
+                                decoder + " --message bits:00110011001100110"),
+                     "decoder reads");
+  EXPECT_FALSE(std::filesystem::exists(bad_out));
+}
+
+}  // namespace
+}  // namespace watergs
