@@ -294,6 +294,40 @@ TEST(Embedder, IdentityOnlyRunEqualsARunWithoutLayers) {
   EXPECT_EQ(identity.total_timings().distortion < 1e-3, true);
 }
 
+TEST(Embedder, ResumeGivesTheSameResultAsAnUninterruptedRun) {
+  Scene s = MakeScene(2, 24, 20);
+  HiddenModel net(TinyDecoderConfig(8), false, 3);
+  Decoder decoder(&net);
+  EmbedOptions o = DefaultEmbedOptions(6);
+  o.crop_size = 12;
+  o.distortions = ParseDistortionList("identity,gn:0.01,dropout:0.2");
+  o.density.densify_from_iter = 2;
+  o.density.densification_interval = 2;
+  o.density.grad_threshold = 1e-7;
+  const std::string path = ::testing::TempDir() + "embedder_resume.ckpt";
+  Embedder full(o, s.views, s.train, s.model, 3.0, &decoder, RandomBits(8, 1),
+                MakeCpuRasterizer());
+  full.Run();
+  Embedder first(o, s.views, s.train, s.model, 3.0, &decoder, RandomBits(8, 1),
+                 MakeCpuRasterizer());
+  for (int i = 0; i < 3; ++i) first.Step();
+  first.SaveCheckpoint(path);
+  Embedder resumed(o, s.views, s.train, s.model, 3.0, &decoder,
+                   RandomBits(8, 1), MakeCpuRasterizer());
+  resumed.Resume(path);
+  EXPECT_EQ(resumed.iteration(), 3);
+  resumed.Run();
+  EXPECT_EQ(resumed.model().means, full.model().means);
+  EXPECT_EQ(resumed.model().sh_dc, full.model().sh_dc);
+  EXPECT_EQ(resumed.origin(), full.origin());
+  // Another run's checkpoint is refused.
+  o.gamma = 0.5;
+  Embedder other(o, s.views, s.train, s.model, 3.0, &decoder, RandomBits(8, 1),
+                 MakeCpuRasterizer());
+  EXPECT_THROW(other.Resume(path), Error);
+  std::remove(path.c_str());
+}
+
 TEST(Embedder, RefusesAMessageOfTheWrongLength) {
   Scene s = MakeScene(1, 16, 12);
   HiddenModel net(TinyDecoderConfig(8), false, 5);
