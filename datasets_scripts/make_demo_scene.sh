@@ -39,7 +39,6 @@ for tool in povray colmap python3; do
 done
 
 readonly width=480 height=360 fov_deg=60 jpeg_quality=88
-threads="$(nproc)"
 tools="$script_dir/demo_scene_tools.py"
 start_seconds=$SECONDS
 export QT_QPA_PLATFORM=offscreen
@@ -87,10 +86,12 @@ run_colmap() {
 }
 
 echo "make_demo_scene: colmap feature_extractor (CPU SIFT, PINHOLE $camera_params)"
+# One thread: with several, COLMAP numbers the images in the order their features finish, and that order
+# changes matching and mapping (keypoints themselves were identical).
 run_colmap feature_extractor --database_path "$database" --image_path "$work/images" \
   --ImageReader.camera_model PINHOLE --ImageReader.single_camera 1 \
   --ImageReader.camera_params "$camera_params" \
-  --SiftExtraction.use_gpu 0 --SiftExtraction.num_threads "$threads" \
+  --SiftExtraction.use_gpu 0 --SiftExtraction.num_threads 1 \
   --SiftExtraction.max_num_features 4096
 echo "make_demo_scene: colmap exhaustive_matcher"
 # One thread: RANSAC draws from per-thread generators, so a single thread makes the matches reproducible.
