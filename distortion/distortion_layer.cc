@@ -229,6 +229,8 @@ void ScatterGradients(const GaussianGradients& distorted,
     ScatterRows(distorted.sh_rest, source, rest_stride, &grads->sh_rest);
   }
   ScatterRows(distorted.mean2d_grad_norm, source, 1, &grads->mean2d_grad_norm);
+  ScatterRows(distorted.mean2d_grad_norm_ndc, source, 1,
+              &grads->mean2d_grad_norm_ndc);
   for (size_t i = 0; i < source.size(); ++i) {
     grads->visible[source[i]] |= distorted.visible[i];
   }

@@ -292,12 +292,6 @@ EmbedStepStats Embedder::Step() {
                           &distorted_grads_);
     ScatterGradients(distorted_grads_, source_, model_.size(),
                      model_.sh_rest_stride(), &grads_);
-    // The density statistic in NDC units follows its Gaussian as well.
-    grads_.mean2d_grad_norm_ndc.assign(model_.size(), 0.f);
-    for (size_t i = 0; i < source_.size(); ++i) {
-      grads_.mean2d_grad_norm_ndc[source_[i]] +=
-          distorted_grads_.mean2d_grad_norm_ndc[i];
-    }
   } else {
     rasterizer_->Backward(model_, *context, grad_image_, &grads_);
   }

@@ -11,6 +11,7 @@ double BinomialTailPValue(int matching, int num_bits) {
     Fail("p-value: " + std::to_string(matching) + " matching bits out of " +
          std::to_string(num_bits) + " is not a valid count");
   }
+  if (matching == 0) return 1.0;  // P[X >= 0], exactly.
   // Sum C(n, k) / 2^n in log space: exact to double precision for any n a
   // decoder has, and never overflows.
   const double n = num_bits;

@@ -123,6 +123,7 @@ TEST(DistortionLayer, ScatterSendsGradientsToSurvivorsOnly) {
   for (size_t i = 0; i < out.size(); ++i) {
     distorted.opacity_logits[i] = 1.0f + i;
     distorted.means[i * 3 + 1] = 2.0f + i;
+    distorted.mean2d_grad_norm_ndc[i] = 4.0f + i;
     distorted.sh_rest[i * out.sh_rest_stride() + 2] = 3.0f + i;
     distorted.visible[i] = 1;
   }
@@ -136,6 +137,7 @@ TEST(DistortionLayer, ScatterSendsGradientsToSurvivorsOnly) {
     EXPECT_EQ(grads.means[j * 3 + 1], i < 0 ? 0.f : 2.0f + i);
     EXPECT_EQ(grads.sh_rest[j * in.sh_rest_stride() + 2],
               i < 0 ? 0.f : 3.0f + i);
+    EXPECT_EQ(grads.mean2d_grad_norm_ndc[j], i < 0 ? 0.f : 4.0f + i);
     EXPECT_EQ(grads.visible[j], i < 0 ? 0 : 1);
   }
 }
