@@ -21,12 +21,13 @@ const std::string kModel =
     std::string(WATERGS_SOURCE_DIR) + "/watermark/models/decoder_48.bin";
 const std::string kPhotos =
     std::string(WATERGS_SOURCE_DIR) + "/tests/data/photos";
-// Figures stated in the README for these photos (128x128, no noise). The
-// shipped decoder is under-trained (42 minutes on 2 shared cores): it reads
-// 51.6% of its encoder's bits here (198 of 384), i.e. chance; the bound sits
-// 6 bits lower for floating-point differences between CPUs.
-constexpr double kStatedAccuracy = 0.50;
-constexpr double kStatedPsnr = 33.0;
+// Targets of issue 4 for these photos (128x128, no noise). The shipped
+// decoder is under-trained (42 minutes on 2 shared cores) and reads 51.6% of
+// its encoder's bits here (README, "Universal decoder"), so the accuracy test
+// below is disabled rather than weakened: enable it once a trained decoder is
+// shipped.
+constexpr double kTargetAccuracy = 0.99;
+constexpr double kTargetPsnr = 33.0;
 
 // [-1,1] NCHW slot 0 -> ImageRGB in [0,1].
 ImageRGB ToImage(const Tensor& t) {
@@ -39,11 +40,17 @@ ImageRGB ToImage(const Tensor& t) {
   return image;
 }
 
-TEST(ShippedDecoderTest, DecodesItsEncoderOnHeldOutPhotos) {
+// Bit accuracy of the shipped decoder on its own encoder's output, encoder
+// PSNR, and accuracy on the unmarked covers, over the held-out photos.
+struct ShippedFigures {
+  double accuracy = 0, cover_accuracy = 0, psnr = 0;
+};
+
+ShippedFigures MeasureShippedDecoder() {
   auto model = LoadHiddenModel(kModel, true, 48);
   Decoder decoder = Decoder::Load(kModel, 48);
   const std::vector<cv::Mat> photos = LoadPhotoFolder(kPhotos);
-  ASSERT_GE(photos.size(), 8u);
+  EXPECT_GE(photos.size(), 8u);
   std::mt19937 rng(2024);
   std::bernoulli_distribution coin(0.5);
   size_t correct = 0, cover_correct = 0, bits = 0;
@@ -72,11 +79,25 @@ TEST(ShippedDecoderTest, DecodesItsEncoderOnHeldOutPhotos) {
     }
     bits += 48;
   }
-  psnr /= double(photos.size());
-  EXPECT_GE(double(correct) / bits, kStatedAccuracy);
-  EXPECT_GE(psnr, kStatedPsnr);
+  ShippedFigures figures;
+  figures.accuracy = double(correct) / bits;
+  figures.cover_accuracy = double(cover_correct) / bits;
+  figures.psnr = psnr / double(photos.size());
+  return figures;
+}
+
+TEST(ShippedDecoderTest, EncoderIsInvisibleAndCoversCarryNoMessage) {
+  const ShippedFigures figures = MeasureShippedDecoder();
+  EXPECT_GE(figures.psnr, kTargetPsnr);
   // Unmarked photos carry no message: near chance against a random one.
-  EXPECT_LT(double(cover_correct) / bits, 0.7);
+  EXPECT_LT(figures.cover_accuracy, 0.7);
+}
+
+// Fails with the shipped under-trained decoder (51.6%); see kTargetAccuracy.
+TEST(ShippedDecoderTest, DISABLED_DecodesItsEncoderAtTargetAccuracy) {
+  const ShippedFigures figures = MeasureShippedDecoder();
+  EXPECT_GE(figures.accuracy, kTargetAccuracy);
+  EXPECT_GE(figures.psnr, kTargetPsnr);
 }
 
 TEST(ShippedDecoderTest, RefusesCorruptedAndTruncatedCopies) {
