@@ -273,4 +273,21 @@ void ProjectBackward(const ProjectionCamera& cam, const float* mean,
   Covariance3dBackward(log_scale, quat, G3, grad_log_scale, grad_quat);
 }
 
+void ComputeScreenRadii(const GaussianModel& model, const RenderCamera& camera,
+                        const std::vector<uint8_t>& visible,
+                        std::vector<float>* radii) {
+  const ProjectionCamera cam = MakeProjectionCamera(camera);
+  const int64_t n = static_cast<int64_t>(model.size());
+  radii->assign(n, 0.f);
+#pragma omp parallel for schedule(static) if (n > 20000)
+  for (int64_t i = 0; i < n; ++i) {
+    if (!visible[i]) continue;
+    ProjectedGaussian p;
+    if (ProjectForward(cam, &model.means[3 * i], &model.log_scales[3 * i],
+                       &model.quats[4 * i], &p)) {
+      (*radii)[i] = static_cast<float>(p.radius);
+    }
+  }
+}
+
 }  // namespace watergs

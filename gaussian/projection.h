@@ -9,8 +9,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include "gaussian/camera.h"
+#include "gaussian/gaussian_model.h"
 
 namespace watergs {
 
@@ -213,6 +215,13 @@ bool ProjectForward(const ProjectionCamera& cam, const float* mean,
 // renders skip most of the projection work for Gaussians outside the crop.
 bool MayTouchTiles(const ProjectionCamera& cam, const float* mean,
                    const float* log_scale, const TileRange& range);
+
+// Inria's 3-sigma screen radius in pixels of every Gaussian with visible[i]
+// set (0 for the others and for culled ones): radii is resized to
+// model.size(). Density control prunes on it.
+void ComputeScreenRadii(const GaussianModel& model, const RenderCamera& camera,
+                        const std::vector<uint8_t>& visible,
+                        std::vector<float>* radii);
 
 // Backward of ProjectGaussian: given dL/dmean2d (2) and dL/dconic (3, for the
 // scalars a, b, c) adds dL/dmean (3), dL/dlog_scale (3), dL/dquat (4).

@@ -137,21 +137,6 @@ size_t Trainer::NextView() {
   return train_views_[view];
 }
 
-void Trainer::ComputeRadii(const RenderCamera& camera) {
-  const ProjectionCamera cam = MakeProjectionCamera(camera);
-  const int64_t n = static_cast<int64_t>(model_.size());
-  radii_.assign(n, 0.f);
-#pragma omp parallel for schedule(static) if (n > 20000)
-  for (int64_t i = 0; i < n; ++i) {
-    if (!grads_.visible[i]) continue;
-    ProjectedGaussian p;
-    if (ProjectForward(cam, &model_.means[3 * i], &model_.log_scales[3 * i],
-                       &model_.quats[4 * i], &p)) {
-      radii_[i] = static_cast<float>(p.radius);
-    }
-  }
-}
-
 IterationStats Trainer::Step() {
   const int64_t it = iteration_ + 1;
   IterationStats stats;
@@ -196,7 +181,7 @@ IterationStats Trainer::Step() {
   const double c3 = ProcessCpuSeconds();
   const std::vector<float>* radii = nullptr;
   if (strategy_->WantsRadii(it)) {
-    ComputeRadii(camera);
+    ComputeScreenRadii(model_, camera, grads_.visible, &radii_);
     radii = &radii_;
   }
   const DensityEvent event =

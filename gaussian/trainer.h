@@ -147,7 +147,6 @@ class Trainer {
  private:
   size_t NextView();
   std::string RunSignature() const;
-  void ComputeRadii(const RenderCamera& camera);
   void AppendLog(const IterationStats& stats, const EvalResult* test);
 
   TrainerOptions options_;

@@ -228,21 +228,6 @@ PixelRect Embedder::SampleRect(int width, int height) {
   return rect;
 }
 
-void Embedder::ComputeRadii(const RenderCamera& camera) {
-  const ProjectionCamera cam = MakeProjectionCamera(camera);
-  const int64_t n = static_cast<int64_t>(model_.size());
-  radii_.assign(n, 0.f);
-#pragma omp parallel for schedule(static) if (n > 20000)
-  for (int64_t i = 0; i < n; ++i) {
-    if (!grads_.visible[i]) continue;
-    ProjectedGaussian p;
-    if (ProjectForward(cam, &model_.means[3 * i], &model_.log_scales[3 * i],
-                       &model_.quats[4 * i], &p)) {
-      radii_[i] = static_cast<float>(p.radius);
-    }
-  }
-}
-
 EmbedStepStats Embedder::Step() {
   const int64_t it = iteration_ + 1;
   EmbedStepStats stats;
@@ -300,7 +285,7 @@ EmbedStepStats Embedder::Step() {
 
   const std::vector<float>* radii = nullptr;
   if (strategy_->WantsRadii(it)) {
-    ComputeRadii(camera);
+    ComputeScreenRadii(model_, camera, grads_.visible, &radii_);
     radii = &radii_;
   }
   const DensityEvent event =

@@ -149,7 +149,6 @@ class Embedder {
   std::string RunSignature() const;
   size_t NextView();
   PixelRect SampleRect(int width, int height);
-  void ComputeRadii(const RenderCamera& camera);
 
   EmbedOptions options_;
   const TrainingViews& views_;
