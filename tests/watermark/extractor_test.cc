@@ -11,25 +11,11 @@
 #include <random>
 
 #include "gaussian/error.h"
+#include "tests/common/look_at.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {
 namespace {
-
-RenderCamera LookAtOrigin(const Eigen::Vector3d& center, int w, int h) {
-  RenderCamera cam;
-  cam.width = w, cam.height = h;
-  cam.fx = cam.fy = 0.8 * w;
-  cam.cx = 0.5 * w, cam.cy = 0.5 * h;
-  const Eigen::Vector3d z = (-center).normalized();
-  const Eigen::Vector3d x = Eigen::Vector3d(0, 0, 1).cross(z).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  cam.R.row(0) = x;
-  cam.R.row(1) = y;
-  cam.R.row(2) = z;
-  cam.t = -cam.R * center;
-  return cam;
-}
 
 GaussianModel RandomBall(int n, uint32_t seed) {
   std::mt19937 rng(seed);
