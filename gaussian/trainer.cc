@@ -245,20 +245,23 @@ void Trainer::Run() {
   auto last_flush = Clock::now();
   double loss_ema = 0;
   while (iteration_ < options_.iterations) {
-    const IterationStats stats = Step();
-    loss_ema = stats.iteration == 1 || loss_ema == 0
-                   ? stats.loss.total
-                   : 0.4 * stats.loss.total + 0.6 * loss_ema;
-    const int64_t it = stats.iteration;
+    const int64_t it = iteration_ + 1;
     const bool test_now = !options_.test_views.empty() &&
                           std::find(options_.test_iterations.begin(),
                                     options_.test_iterations.end(),
                                     it) != options_.test_iterations.end();
+    // As Inria's training_report: held-out views are scored before this
+    // iteration's densification, opacity reset and step, so a test at a
+    // reset iteration (3000, 6000, ...) does not score the reset model.
     EvalResult test;
     if (test_now) {
       test = EvaluateViews(*rasterizer_, model_, views_, options_.test_views,
                            options_.background, active_sh_degree_);
     }
+    const IterationStats stats = Step();
+    loss_ema = stats.iteration == 1 || loss_ema == 0
+                   ? stats.loss.total
+                   : 0.4 * stats.loss.total + 0.6 * loss_ema;
     if (test_now || it == 1 || it == options_.iterations ||
         (options_.log_every > 0 && it % options_.log_every == 0)) {
       AppendLog(stats, test_now ? &test : nullptr);
