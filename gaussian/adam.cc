@@ -250,19 +250,25 @@ size_t Adam::Step(const GaussianGradients& grads, GaussianModel* model) {
   return rejected;
 }
 
+Adam::StepConstants Adam::NextStepConstants(ParamGroup group,
+                                            AdamGroupState* state) const {
+  ++state->step;
+  const double bias1 = 1.0 - std::pow(options_.beta1, double(state->step));
+  const double bias2 = 1.0 - std::pow(options_.beta2, double(state->step));
+  return {static_cast<float>(lr_[Index(group)] / bias1),
+          static_cast<float>(std::sqrt(bias2)),
+          static_cast<float>(1.0 - options_.beta1),
+          static_cast<float>(options_.beta2),
+          static_cast<float>(1.0 - options_.beta2),
+          static_cast<float>(options_.eps)};
+}
+
 size_t Adam::StepGroup(ParamGroup group, const std::vector<float>& grad,
                        int stride, std::vector<float>* params) {
   AdamGroupState& s = groups_[Index(group)];
-  ++s.step;
   // torch.optim.Adam (single-tensor path), in float like torch.
-  const double bias1 = 1.0 - std::pow(options_.beta1, double(s.step));
-  const double bias2 = 1.0 - std::pow(options_.beta2, double(s.step));
-  const float step_size = static_cast<float>(lr_[Index(group)] / bias1);
-  const float bias2_sqrt = static_cast<float>(std::sqrt(bias2));
-  const float w1 = static_cast<float>(1.0 - options_.beta1);
-  const float beta2 = static_cast<float>(options_.beta2);
-  const float w2 = static_cast<float>(1.0 - options_.beta2);
-  const float eps = static_cast<float>(options_.eps);
+  const auto [step_size, bias2_sqrt, w1, beta2, w2, eps] =
+      NextStepConstants(group, &s);
   const std::vector<uint8_t>& mask = masks_[Index(group)];
   const bool use_mask = !mask.empty();
   float* p = params->data();
@@ -316,15 +322,9 @@ size_t Adam::StepGroup(ParamGroup group, const std::vector<float>& grad,
 size_t Adam::StepGroupCompact(ParamGroup group, const std::vector<float>& grad,
                               int stride, std::vector<float>* params) {
   AdamGroupState& s = groups_[Index(group)];
-  ++s.step;
-  const double bias1 = 1.0 - std::pow(options_.beta1, double(s.step));
-  const double bias2 = 1.0 - std::pow(options_.beta2, double(s.step));
-  const float step_size = static_cast<float>(lr_[Index(group)] / bias1);
-  const float bias2_sqrt = static_cast<float>(std::sqrt(bias2));
-  const float w1 = static_cast<float>(1.0 - options_.beta1);
-  const float beta2 = static_cast<float>(options_.beta2);
-  const float w2 = static_cast<float>(1.0 - options_.beta2);
-  const float eps = static_cast<float>(options_.eps);
+  // torch.optim.Adam (single-tensor path), in float like torch.
+  const auto [step_size, bias2_sqrt, w1, beta2, w2, eps] =
+      NextStepConstants(group, &s);
   const std::vector<uint8_t>& mask = masks_[Index(group)];
   const bool use_mask = !mask.empty();
   float* p = params->data();

@@ -124,6 +124,13 @@ class Adam {
 
  private:
   static int Index(ParamGroup group) { return static_cast<int>(group); }
+  // Per-step scalars of one group's update, in float as torch computes them.
+  struct StepConstants {
+    float step_size, bias2_sqrt, w1, beta2, w2, eps;
+  };
+  // Advances the group's step count and returns its update scalars.
+  StepConstants NextStepConstants(ParamGroup group,
+                                  AdamGroupState* state) const;
   size_t StepGroup(ParamGroup group, const std::vector<float>& grad, int stride,
                    std::vector<float>* params);
   size_t StepGroupCompact(ParamGroup group, const std::vector<float>& grad,
