@@ -36,7 +36,8 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
                                   const std::vector<std::string>& names,
                                   Decoder& decoder, const Bits* expected,
                                   const std::array<float, 3>& background,
-                                  const VerificationThresholds& thresholds) {
+                                  const VerificationThresholds& thresholds,
+                                  const RenderAttack& attack) {
   const int num_bits = decoder.NumBits();
   if (cameras.empty()) Fail("extract: no views to render");
   if (expected && static_cast<int>(expected->size()) != num_bits) {
@@ -53,6 +54,7 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
   for (size_t k = 0; k < cameras.size(); ++k) {
     rasterizer.Forward(model, cameras[k], options, &image, nullptr);
     for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+    if (attack) image = attack(image);
     ViewDecode view;
     view.name = k < names.size() ? names[k] : "free_" + std::to_string(k);
     view.logits = decoder.Logits(image);

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -55,15 +56,20 @@ struct ExtractionResult {
 std::vector<RenderCamera> SampleFreeViewpoints(const TrainingViews& views,
                                                int n, uint64_t seed);
 
+// An attack on each render before it is decoded (JPEG, resize, ...).
+using RenderAttack = std::function<ImageRGB(const ImageRGB&)>;
+
 // Renders `model` from each camera (whole frames, clamped to [0, 1]), decodes
 // and aggregates; `expected` (may be null) must have the decoder's length.
+// `attack`, when set, transforms each clamped render before decoding.
 ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
                                   const GaussianModel& model,
                                   const std::vector<RenderCamera>& cameras,
                                   const std::vector<std::string>& names,
                                   Decoder& decoder, const Bits* expected,
                                   const std::array<float, 3>& background,
-                                  const VerificationThresholds& thresholds);
+                                  const VerificationThresholds& thresholds,
+                                  const RenderAttack& attack = {});
 
 // The result as JSON text (recovered hex/bits, BER, spread, p-value, verdict,
 // per-view BER).

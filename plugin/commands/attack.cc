@@ -1,10 +1,15 @@
-// `watergs attack`: applies the 3D distortions of the fine-tuning layers to a
-// PLY file, for robustness evaluation and for users checking their files.
+// `watergs attack`: applies the 3D distortions of the fine-tuning layers and
+// the file attacks users meet (SH truncation, quantisation, shuffling, a
+// similarity transform, opacity pruning) to a PLY, for robustness evaluation
+// and for users checking their files. A similarity transform moves the scene
+// away from the workspace's cameras: the transform is printed and written to
+// <output_path>.transform.txt for `watergs extract --scene_transform`.
 #include <iostream>
 #include <random>
 
-#include "distortion/distortion_layer.h"
+#include "distortion/file_attacks.h"
 #include "gaussian/error.h"
+#include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
@@ -17,21 +22,28 @@ int RunAttack(int argc, char** argv) {
   int seed = 0;
   OptionParser parser(
       "attack",
-      "Distorts a 3DGS PLY as the 3D distortion layers do: Gaussian noise on "
-      "positions (gn:SIGMA, scene units), dropout of a random fraction "
-      "(dropout:P), or removal of a contiguous run in file order (crop:P). "
-      "Several, comma-separated, are applied in order. The output keeps the "
-      "input's PLY layout.");
-  parser.AddRequired("input_path", &input_path, "PLY to distort");
+      "Attacks a 3DGS PLY, applying the comma-separated attacks in order: "
+      "gn:SIGMA (noise on positions, scene units), dropout:P (random "
+      "fraction removed), crop:P (contiguous run in file order removed), sh0 "
+      "(f_rest zeroed: degree-0 colour, layout kept), fp16 (attributes "
+      "rounded to float16), quant:BITS (per-attribute min/max linear "
+      "quantisation, default 8), shuffle (Gaussians permuted), "
+      "similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ] (whole scene rotated about the "
+      "axis, default z, scaled and translated; SH rotated with it), prune:T "
+      "(Gaussians with opacity < T removed). The output keeps the input's PLY "
+      "layout.");
+  parser.AddRequired("input_path", &input_path, "PLY to attack");
   parser.AddRequired("attack", &attacks,
-                     "identity | gn:SIGMA | dropout:P | crop:P [,...]");
-  parser.AddRequired("output_path", &output_path, "Distorted PLY to write");
+                     "identity | gn:SIGMA | dropout:P | crop:P | sh0 | fp16 | "
+                     "quant:BITS | shuffle | similarity:DEG,TX,TY,TZ,S[,AX,AY,"
+                     "AZ] | prune:T [,...]");
+  parser.AddRequired("output_path", &output_path, "Attacked PLY to write");
   parser.Add("seed", &seed, "Random seed");
   if (!parser.Parse(argc, argv)) return 0;
   if (input_path == output_path) {
     Fail("attack: --output_path must differ from --input_path");
   }
-  const std::vector<DistortionSpec> specs = ParseDistortionList(attacks);
+  const std::vector<ModelAttackSpec> specs = ParseModelAttackList(attacks);
   PlyData ply = ReadPly(input_path);
   std::mt19937_64 rng(static_cast<uint64_t>(seed));
   // parent[i]: index in the input file of output Gaussian i.
@@ -39,20 +51,32 @@ int RunAttack(int argc, char** argv) {
   for (size_t i = 0; i < parent.size(); ++i) parent[i] = int64_t(i);
   GaussianModel model = std::move(ply.model);
   const size_t input_count = model.size();
-  for (const DistortionSpec& spec : specs) {
-    GaussianModel distorted;
+  SimilarityTransform scene_transform;
+  bool moved = false;
+  for (const ModelAttackSpec& spec : specs) {
+    GaussianModel attacked;
     std::vector<uint32_t> source;
-    MakeDistortionLayer(spec)->Apply(model, rng, &distorted, &source);
+    ApplyModelAttack(spec, model, rng, &attacked, &source);
     std::vector<int64_t> composed(source.size());
     for (size_t i = 0; i < source.size(); ++i) composed[i] = parent[source[i]];
     parent = std::move(composed);
-    model = std::move(distorted);
+    model = std::move(attacked);
+    if (spec.kind == ModelAttackKind::kSimilarity) {
+      scene_transform = spec.similarity.After(scene_transform);
+      moved = true;
+    }
     std::cout << ToString(spec) << ": " << model.size() << " Gaussians\n";
   }
   ply.layout.RemapExtras(parent);
   WritePly(output_path, model, ply.layout);
   std::cout << "wrote " << output_path << " (" << model.size() << " of "
             << input_count << " Gaussians)\n";
+  if (moved) {
+    const std::string text = "similarity:" + ToString(scene_transform);
+    AtomicWriteFile(output_path + ".transform.txt", text + "\n");
+    std::cout << "scene transform " << text << "\nwrote " << output_path
+              << ".transform.txt (pass it to extract --scene_transform)\n";
+  }
   return 0;
 }
 
@@ -60,5 +84,6 @@ int RunAttack(int argc, char** argv) {
 }  // namespace watergs
 
 WATERGS_COMMAND(attack,
-                "Applies 3D distortions (noise, dropout, crop) to a PLY",
+                "Attacks a PLY: 3D distortions, SH truncation, quantisation, "
+                "shuffling, similarity transform, opacity pruning",
                 watergs::RunAttack);

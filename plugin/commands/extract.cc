@@ -1,12 +1,17 @@
 // `watergs extract`: reads the WATER-GS watermark of a 3DGS model from its
 // renders and, given the claimed message, prints the statistical verdict.
 // A verdict is a result, not an error: the exit code is 0 for all of them.
+// A model moved by a similarity transform (`watergs attack similarity:...`)
+// is read from cameras moved with it (--scene_transform); renders can be
+// attacked before decoding (--image_attack jpeg:Q | resize:F | crop:F).
 #include <omp.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
 
+#include "distortion/file_attacks.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
@@ -15,12 +20,30 @@
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "watermark/extractor.h"
+#include "watermark/image_attacks.h"
 
 namespace watergs {
 namespace {
 
+// "similarity:..." (or the bare numbers), or a file holding that line (the
+// <output>.transform.txt that `watergs attack` writes).
+SimilarityTransform ParseSceneTransform(const std::string& value) {
+  std::string text = value;
+  if (std::filesystem::is_regular_file(value)) {
+    const std::vector<uint8_t> bytes = ReadFileBytes(value);
+    text.assign(bytes.begin(), bytes.end());
+    while (!text.empty() && std::isspace((unsigned char)text.back())) {
+      text.pop_back();
+    }
+  }
+  const std::string prefix = "similarity:";
+  if (text.rfind(prefix, 0) == 0) text = text.substr(prefix.size());
+  return ParseSimilarity(text);
+}
+
 int RunExtract(int argc, char** argv) {
   std::string input_path, decoder_path, message, json_path;
+  std::string scene_transform, image_attack;
   std::string background = "0,0,0";
   WorkspaceOptions workspace_options;
   int num_views = 0;
@@ -56,6 +79,12 @@ int RunExtract(int argc, char** argv) {
   parser.Add("seed", &seed, "Seed of the free viewpoints");
   parser.Add("num_threads", &num_threads, "Threads (0 = all cores)");
   parser.Add("json", &json_path, "Write the result as JSON to this file");
+  parser.Add("scene_transform", &scene_transform,
+             "similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ] the model was moved by, or "
+             "the .transform.txt file watergs attack wrote: the cameras move "
+             "with it");
+  parser.Add("image_attack", &image_attack,
+             "Attack each render before decoding: jpeg:Q, resize:F, crop:F");
   if (!parser.Parse(argc, argv)) return 0;
   if (num_views < 0 || max_views < 0) Fail("--num_views must be >= 0");
   if (!(present_p > 0 && present_p < 0.01)) {
@@ -82,12 +111,25 @@ int RunExtract(int argc, char** argv) {
       names.push_back(views.Name(k * n / count));
     }
   }
+  if (!scene_transform.empty()) {
+    const SimilarityTransform transform = ParseSceneTransform(scene_transform);
+    for (RenderCamera& camera : cameras) {
+      camera = TransformCamera(camera, transform);
+    }
+  }
+  RenderAttack attack;
+  if (!image_attack.empty()) {
+    const ImageAttackSpec spec = ParseImageAttack(image_attack);
+    attack = [spec](const ImageRGB& image) {
+      return ApplyImageAttack(spec, image);
+    };
+  }
   VerificationThresholds thresholds;
   thresholds.present_p = present_p;
   const ExtractionResult r =
       ExtractWatermark(*MakeCpuRasterizer(), ply.model, cameras, names, decoder,
                        expected.empty() ? nullptr : &expected,
-                       ParseBackground(background), thresholds);
+                       ParseBackground(background), thresholds, attack);
 
   std::printf("extract: %zu views of %s (%zu Gaussians)\n", r.views.size(),
               input_path.c_str(), ply.model.size());

@@ -1,0 +1,166 @@
+// `watergs eval`: image quality and watermark robustness of a watermarked
+// 3DGS model against its raw original on a workspace's held-out views, as
+// JSON and a Markdown table (docs/evaluation.md).
+#include <omp.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "gaussian/ply_io.h"
+#include "plugin/command.h"
+#include "plugin/option_parser.h"
+#include "plugin/training_views.h"
+#include "plugin/workspace.h"
+#include "watermark/evaluation.h"
+
+namespace watergs {
+namespace {
+
+// The views to evaluate: held-out (every 8th), all, or at most `max_views`
+// of those spread evenly.
+std::vector<size_t> SelectViews(const Workspace& workspace,
+                                const std::string& which, int max_views) {
+  std::vector<size_t> views;
+  if (which == "test") {
+    views = workspace.TestViews(true);
+  } else if (which == "all") {
+    views = workspace.TestViews(false);
+    if (views.empty()) views = workspace.TrainViews(false);
+  } else {
+    Fail("eval: --views must be 'test' or 'all', not '" + which + "'");
+  }
+  if (max_views > 0 && size_t(max_views) < views.size()) {
+    std::vector<size_t> spread;
+    for (int k = 0; k < max_views; ++k) {
+      spread.push_back(views[k * views.size() / max_views]);
+    }
+    views = spread;
+  }
+  return views;
+}
+
+// Loads the LPIPS weights if the file exists; else sets `note`.
+std::unique_ptr<Lpips> LoadLpipsIfPresent(const std::string& path,
+                                          std::string* note) {
+  if (path.empty()) {
+    *note = "not computed (--lpips_weights is empty)";
+    return nullptr;
+  }
+  if (!std::filesystem::exists(path)) {
+    *note = "LPIPS weights not found at " + path +
+            " (bash datasets_scripts/download_lpips_weights.sh)";
+    return nullptr;
+  }
+  return Lpips::Load(path);
+}
+
+int RunEval(int argc, char** argv) {
+  std::string raw_path, input_path, decoder_path, message, output_path;
+  std::string model_attacks =
+      "identity,gn:0.01,dropout:0.1,crop:0.1,sh0,fp16,quant:8,shuffle,"
+      "similarity:30,0.1,-0.2,0.3,1.5,1,1,1,prune:0.05";
+  std::string image_attacks = "jpeg:75,jpeg:50,resize:0.5,crop:0.5";
+  std::string lpips_path = "data/lpips/lpips_vgg.bin";
+  std::string which_views = "test", background = "0,0,0";
+  WorkspaceOptions workspace_options;
+  int max_views = 0, num_threads = 0;
+  int64_t seed = 0;
+  double present_p = VerificationThresholds().present_p;
+  OptionParser parser(
+      "eval",
+      "Evaluates a watermarked 3DGS model against its raw original on the "
+      "workspace's held-out views (every 8th image, as train --eval): PSNR, "
+      "SSIM, MS-SSIM and VGG-LPIPS against ground truth and against the raw "
+      "renders; BER, p-value and verdict under each model attack and each "
+      "attack on the renders. Prints a Markdown table; --output_path P "
+      "writes P.json and P.md.");
+  parser.AddRequired("raw_path", &raw_path, "The raw (unwatermarked) PLY");
+  parser.AddRequired("input_path", &input_path, "The watermarked PLY");
+  parser.AddRequired("workspace_path", &workspace_options.workspace_path,
+                     "COLMAP workspace with the ground-truth images");
+  parser.Add("image_path", &workspace_options.image_path,
+             "Image folder (default <workspace>/images)");
+  parser.Add("downscale", &workspace_options.downscale,
+             "Image downscale: 1,2,4,8");
+  parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  parser.AddRequired("message", &message,
+                     "Embedded message (hex:/0x/bits:/text)");
+  parser.Add("output_path", &output_path,
+             "Report prefix: writes <prefix>.json and <prefix>.md");
+  parser.Add("attacks", &model_attacks,
+             "Model attacks, each applied alone (see watergs attack)");
+  parser.Add("image_attacks", &image_attacks,
+             "Attacks on renders: jpeg:Q, resize:F, crop:F ('' for none)");
+  parser.Add("lpips_weights", &lpips_path,
+             "LPIPS-VGG weights (download_lpips_weights.sh); '' to skip");
+  parser.Add("views", &which_views, "test (every 8th) or all");
+  parser.Add("max_views", &max_views,
+             "Evaluate at most this many views, spread evenly (0 = all)");
+  parser.Add("false_positive_rate", &present_p,
+             "p-value at or below which the watermark is declared present");
+  parser.Add("background", &background, "r,g,b, black or white");
+  parser.Add("seed", &seed, "Seed of the random attacks");
+  parser.Add("num_threads", &num_threads, "Threads (0 = all cores)");
+  if (!parser.Parse(argc, argv)) return 0;
+  if (max_views < 0) Fail("eval: --max_views must be >= 0");
+  if (!(present_p > 0 && present_p < 0.01)) {
+    Fail("eval: --false_positive_rate must be in (0, 0.01)");
+  }
+  if (num_threads > 0) omp_set_num_threads(num_threads);
+
+  EvaluationOptions options;
+  options.model_attacks = model_attacks.empty()
+                              ? std::vector<ModelAttackSpec>{}
+                              : ParseModelAttackList(model_attacks);
+  options.image_attacks = image_attacks.empty()
+                              ? std::vector<ImageAttackSpec>{}
+                              : ParseImageAttackList(image_attacks);
+  options.background = ParseBackground(background);
+  options.thresholds.present_p = present_p;
+  options.seed = uint64_t(seed);
+  options.show_progress = true;
+  const PlyData raw = ReadPly(raw_path);
+  const PlyData watermarked = ReadPly(input_path);
+  Decoder decoder = Decoder::Load(decoder_path);
+  const Bits bits = ParseMessage(message, decoder.NumBits());
+  std::unique_ptr<Lpips> lpips =
+      LoadLpipsIfPresent(lpips_path, &options.lpips_note);
+  options.lpips = lpips.get();
+  const Workspace workspace = Workspace::Open(workspace_options);
+  const WorkspaceViews views(workspace);
+  const std::vector<size_t> eval_views =
+      SelectViews(workspace, which_views, max_views);
+
+  const EvaluationReport report =
+      EvaluateWatermark(*MakeCpuRasterizer(), raw.model, watermarked.model,
+                        views, eval_views, decoder, bits, options);
+  std::string markdown =
+      "# watergs eval\n\nRaw " + raw_path + " (" +
+      std::to_string(report.raw_gaussians) + " Gaussians), watermarked " +
+      input_path + " (" + std::to_string(report.watermarked_gaussians) +
+      " Gaussians), " + std::to_string(eval_views.size()) + " " +
+      (which_views == "test" ? "held-out " : "") + "views of " +
+      workspace_options.workspace_path + ".\n\n" + EvaluationToMarkdown(report);
+  std::cout << markdown;
+  if (!output_path.empty()) {
+    AtomicWriteFile(output_path + ".json", EvaluationToJson(report));
+    AtomicWriteFile(output_path + ".md", markdown);
+    std::cout << "\neval: wrote " << output_path << ".json and " << output_path
+              << ".md\n";
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace watergs
+
+WATERGS_COMMAND(eval,
+                "Image quality and watermark robustness of a watermarked "
+                "model against its raw original",
+                watergs::RunEval);

@@ -1,0 +1,272 @@
+// Evaluation of a watermarked model (see evaluation.h).
+#include "watermark/evaluation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "gaussian/error.h"
+#include "gaussian/loss.h"
+#include "gaussian/progress.h"
+#include "watermark/image_quality.h"
+
+namespace watergs {
+namespace {
+
+ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
+                       const RenderCamera& camera,
+                       const std::array<float, 3>& background) {
+  RenderOptions options;
+  options.background = background;
+  ImageRGB image;
+  rasterizer.Forward(model, camera, options, &image, nullptr);
+  for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+  return image;
+}
+
+// Metrics of `image` against `reference`; LPIPS from precomputed features.
+QualityMetrics Compare(const ImageRGB& image, const ImageRGB& reference,
+                       const Lpips* lpips,
+                       const Lpips::Features* image_features,
+                       const Lpips::Features* reference_features) {
+  QualityMetrics m;
+  m.psnr = Psnr(image, reference);
+  m.ssim = Ssim(image, reference);
+  const MsSsimResult ms = MsSsim(image, reference);
+  m.ms_ssim = ms.value;
+  m.ms_ssim_scales = ms.scales;
+  if (lpips && image_features && reference_features) {
+    m.has_lpips = true;
+    m.lpips = lpips->Distance(*image_features, *reference_features);
+  }
+  return m;
+}
+
+void Accumulate(const QualityMetrics& view, size_t count,
+                QualityComparison* comparison) {
+  comparison->per_view.push_back(view);
+  QualityMetrics& mean = comparison->mean;
+  mean.psnr += view.psnr / count;
+  mean.ssim += view.ssim / count;
+  mean.ms_ssim += view.ms_ssim / count;
+  mean.ms_ssim_scales = view.ms_ssim_scales;
+  mean.has_lpips = view.has_lpips;
+  mean.lpips += view.lpips / count;
+}
+
+nlohmann::json Number(double value) {
+  return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json();
+}
+
+nlohmann::json MetricsJson(const QualityMetrics& m) {
+  return {{"psnr", Number(m.psnr)},
+          {"ssim", Number(m.ssim)},
+          {"ms_ssim", Number(m.ms_ssim)},
+          {"ms_ssim_scales", m.ms_ssim_scales},
+          {"lpips", m.has_lpips ? Number(m.lpips) : nlohmann::json()}};
+}
+
+std::string Format(const char* format, double value) {
+  if (!std::isfinite(value)) return std::isinf(value) ? "inf" : "n/a";
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), format, value);
+  return buffer;
+}
+
+}  // namespace
+
+std::vector<ModelAttackSpec> DefaultModelAttacks() {
+  return ParseModelAttackList(
+      "identity,gn:0.01,dropout:0.1,crop:0.1,sh0,fp16,quant:8,shuffle,"
+      "similarity:30,0.1,-0.2,0.3,1.5,1,1,1,prune:0.05");
+}
+
+std::vector<ImageAttackSpec> DefaultImageAttacks() {
+  return ParseImageAttackList("jpeg:75,jpeg:50,resize:0.5,crop:0.5");
+}
+
+EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
+                                   const GaussianModel& raw,
+                                   const GaussianModel& watermarked,
+                                   const TrainingViews& views,
+                                   const std::vector<size_t>& eval_views,
+                                   Decoder& decoder, const Bits& message,
+                                   const EvaluationOptions& options) {
+  if (eval_views.empty()) Fail("eval: no views to evaluate");
+  const auto begin = std::chrono::steady_clock::now();
+  EvaluationReport report;
+  report.raw_gaussians = raw.size();
+  report.watermarked_gaussians = watermarked.size();
+  report.message = message;
+  report.thresholds = options.thresholds;
+  report.lpips_note = options.lpips ? "" : options.lpips_note;
+  report.vs_ground_truth.label = "watermarked vs ground truth";
+  report.vs_raw.label = "watermarked vs raw renders";
+  report.raw_vs_ground_truth.label = "raw vs ground truth";
+  const size_t n = eval_views.size();
+  const size_t num_attacks =
+      options.model_attacks.size() + options.image_attacks.size() + 1;
+  ProgressBar progress("eval", int64_t(n * (1 + num_attacks)));
+  const auto step = [&](int64_t done, const std::string& what) {
+    if (options.show_progress) progress.Update(done, what);
+  };
+
+  std::vector<RenderCamera> cameras;
+  for (size_t view : eval_views) {
+    report.view_names.push_back(views.Name(view));
+    cameras.push_back(views.Camera(view));
+  }
+  Lpips* lpips = options.lpips;
+  for (size_t k = 0; k < n; ++k) {
+    const std::shared_ptr<const ImageRGB> truth_image =
+        views.Image(eval_views[k]);
+    const ImageRGB& truth = *truth_image;
+    const ImageRGB wm =
+        RenderClamped(rasterizer, watermarked, cameras[k], options.background);
+    const ImageRGB base =
+        RenderClamped(rasterizer, raw, cameras[k], options.background);
+    Lpips::Features f_wm, f_base, f_truth;
+    if (lpips) {
+      f_wm = lpips->Extract(wm);
+      f_base = lpips->Extract(base);
+      f_truth = lpips->Extract(truth);
+    }
+    Accumulate(Compare(wm, truth, lpips, &f_wm, &f_truth), n,
+               &report.vs_ground_truth);
+    Accumulate(Compare(wm, base, lpips, &f_wm, &f_base), n, &report.vs_raw);
+    Accumulate(Compare(base, truth, lpips, &f_base, &f_truth), n,
+               &report.raw_vs_ground_truth);
+    step(int64_t(k + 1), "quality");
+  }
+
+  int64_t done = int64_t(n);
+  const auto extract = [&](const GaussianModel& model,
+                           const std::vector<RenderCamera>& render_cameras,
+                           const RenderAttack& attack) {
+    return ExtractWatermark(rasterizer, model, render_cameras,
+                            report.view_names, decoder, &message,
+                            options.background, options.thresholds, attack);
+  };
+  const auto add_row = [&](std::string model, std::string attack,
+                           std::string kind, size_t gaussians,
+                           ExtractionResult result) {
+    done += int64_t(n);
+    char status[96];
+    std::snprintf(status, sizeof(status), "%s BER %.1f%%", attack.c_str(),
+                  100 * result.ber);
+    step(done, status);
+    report.robustness.push_back({std::move(model), std::move(attack),
+                                 std::move(kind), gaussians,
+                                 std::move(result)});
+  };
+  for (size_t a = 0; a < options.model_attacks.size(); ++a) {
+    const ModelAttackSpec& spec = options.model_attacks[a];
+    std::mt19937_64 rng(options.seed + a);
+    GaussianModel attacked;
+    std::vector<uint32_t> source;
+    ApplyModelAttack(spec, watermarked, rng, &attacked, &source);
+    std::vector<RenderCamera> moved = cameras;
+    if (spec.kind == ModelAttackKind::kSimilarity) {
+      for (RenderCamera& c : moved) c = TransformCamera(c, spec.similarity);
+    }
+    add_row("watermarked", ToString(spec), "3d", attacked.size(),
+            extract(attacked, moved, {}));
+  }
+  for (const ImageAttackSpec& spec : options.image_attacks) {
+    const RenderAttack attack = [spec](const ImageRGB& image) {
+      return ApplyImageAttack(spec, image);
+    };
+    add_row("watermarked", ToString(spec), "2d", watermarked.size(),
+            extract(watermarked, cameras, attack));
+  }
+  add_row("raw", "identity", "3d", raw.size(), extract(raw, cameras, {}));
+  if (options.show_progress) progress.Finish();
+  report.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - begin)
+          .count();
+  return report;
+}
+
+std::string EvaluationToJson(const EvaluationReport& r) {
+  nlohmann::json j;
+  j["raw_gaussians"] = r.raw_gaussians;
+  j["watermarked_gaussians"] = r.watermarked_gaussians;
+  j["num_bits"] = r.message.size();
+  j["message_bits"] = BitsToString(r.message);
+  j["views"] = r.view_names;
+  j["false_positive_rate"] = r.thresholds.present_p;
+  j["absent_above_p"] = r.thresholds.absent_p;
+  j["lpips_note"] = r.lpips_note;
+  j["seconds"] = r.seconds;
+  nlohmann::json quality = nlohmann::json::array();
+  for (const QualityComparison* c :
+       {&r.vs_ground_truth, &r.vs_raw, &r.raw_vs_ground_truth}) {
+    nlohmann::json per_view = nlohmann::json::array();
+    for (const QualityMetrics& m : c->per_view) {
+      per_view.push_back(MetricsJson(m));
+    }
+    quality.push_back({{"comparison", c->label},
+                       {"mean", MetricsJson(c->mean)},
+                       {"per_view", per_view}});
+  }
+  j["quality"] = quality;
+  nlohmann::json rows = nlohmann::json::array();
+  for (const RobustnessRow& row : r.robustness) {
+    const ExtractionResult& e = row.extraction;
+    rows.push_back({{"model", row.model},
+                    {"attack", row.attack},
+                    {"kind", row.kind},
+                    {"gaussians", row.num_gaussians},
+                    {"ber", e.ber},
+                    {"bit_errors", e.bit_errors},
+                    {"view_ber",
+                     {{"min", e.min_view_ber},
+                      {"median", e.median_view_ber},
+                      {"max", e.max_view_ber}}},
+                    {"p_value", e.p_value},
+                    {"verdict", ToString(e.verdict)},
+                    {"recovered_hex", BitsToHex(e.recovered)}});
+  }
+  j["robustness"] = rows;
+  return j.dump(2) + "\n";
+}
+
+std::string EvaluationToMarkdown(const EvaluationReport& r) {
+  std::ostringstream out;
+  out << "## Image quality (mean over " << r.view_names.size() << " views)\n\n"
+      << "| Comparison | PSNR (dB) | SSIM | MS-SSIM | LPIPS (VGG) |\n"
+      << "|---|---:|---:|---:|---:|\n";
+  for (const QualityComparison* c :
+       {&r.vs_ground_truth, &r.vs_raw, &r.raw_vs_ground_truth}) {
+    const QualityMetrics& m = c->mean;
+    out << "| " << c->label << " | " << Format("%.2f", m.psnr) << " | "
+        << Format("%.4f", m.ssim) << " | " << Format("%.4f", m.ms_ssim) << " | "
+        << (m.has_lpips ? Format("%.4f", m.lpips) : "") << " |\n";
+  }
+  out << "\n";
+  if (!r.lpips_note.empty()) out << "LPIPS: " << r.lpips_note << ".\n";
+  const int scales = r.vs_ground_truth.mean.ms_ssim_scales;
+  if (scales < 5) {
+    out << "MS-SSIM: " << scales
+        << " scale(s), the image is too small for 5 (weights renormalised).\n";
+  }
+  out << "\n## Watermark (" << r.message.size()
+      << " bits; present at p <= " << Format("%.0e", r.thresholds.present_p)
+      << ")\n\n"
+      << "| Model | Attack | Kind | Gaussians | BER (%) | Bit errors | "
+         "p-value | Verdict |\n"
+      << "|---|---|---|---:|---:|---:|---:|---|\n";
+  for (const RobustnessRow& row : r.robustness) {
+    const ExtractionResult& e = row.extraction;
+    out << "| " << row.model << " | " << row.attack << " | " << row.kind
+        << " | " << row.num_gaussians << " | " << Format("%.2f", 100 * e.ber)
+        << " | " << e.bit_errors << " | " << Format("%.3g", e.p_value) << " | "
+        << ToString(e.verdict) << " |\n";
+  }
+  return out.str();
+}
+
+}  // namespace watergs

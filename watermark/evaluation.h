@@ -1,0 +1,121 @@
+// Evaluation of a watermarked 3DGS model against its raw original, as the
+// paper reports it and beyond: image quality of the watermarked renders
+// (PSNR, SSIM, MS-SSIM, VGG-LPIPS) against ground truth and against the raw
+// model's renders, and the watermark's bit error rate, p-value and verdict
+// under each model attack (the paper's 3D distortions and the file attacks
+// of distortion/file_attacks.h) and each attack on the rendered images
+// (watermark/image_attacks.h). Reports as JSON and Markdown.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "distortion/file_attacks.h"
+#include "gaussian/rasterizer.h"
+#include "gaussian/trainer.h"
+#include "watermark/decoder.h"
+#include "watermark/extractor.h"
+#include "watermark/image_attacks.h"
+#include "watermark/lpips.h"
+
+namespace watergs {
+
+// identity, gn:0.01, dropout:0.1, crop:0.1 (the paper's defaults), sh0,
+// fp16, quant:8, shuffle, similarity:30,0.1,-0.2,0.3,1.5,1,1,1, prune:0.05.
+std::vector<ModelAttackSpec> DefaultModelAttacks();
+// jpeg:75, jpeg:50, resize:0.5, crop:0.5.
+std::vector<ImageAttackSpec> DefaultImageAttacks();
+
+struct EvaluationOptions {
+  // Colour behind the Gaussians.
+  std::array<float, 3> background = {0.f, 0.f, 0.f};
+  // Attacks on the watermarked model (each applied alone to the original).
+  std::vector<ModelAttackSpec> model_attacks = DefaultModelAttacks();
+  // Attacks on the watermarked model's renders.
+  std::vector<ImageAttackSpec> image_attacks = DefaultImageAttacks();
+  // Verdict thresholds.
+  VerificationThresholds thresholds;
+  // Seeds the random attacks (attack k uses seed + k).
+  uint64_t seed = 0;
+  // LPIPS network, or null: the LPIPS column is then empty, `lpips_note`
+  // says why.
+  Lpips* lpips = nullptr;
+  std::string lpips_note;
+  // Draw a progress bar with ETA on stderr.
+  bool show_progress = false;
+};
+
+// Metrics of one image against a reference.
+struct QualityMetrics {
+  double psnr = 0, ssim = 0, ms_ssim = 0;
+  // Scales MS-SSIM used (5 unless the image is small).
+  int ms_ssim_scales = 0;
+  // LPIPS, valid only when has_lpips.
+  bool has_lpips = false;
+  double lpips = 0;
+};
+
+// One comparison ("watermarked vs ground truth", ...), mean over views.
+struct QualityComparison {
+  // What is compared, for the report.
+  std::string label;
+  // Mean over views (Inria averages per-image metrics).
+  QualityMetrics mean;
+  // Per view, in the order of EvaluationReport::view_names.
+  std::vector<QualityMetrics> per_view;
+};
+
+// The watermark under one attack.
+struct RobustnessRow {
+  // "watermarked" or "raw" (the false-positive check).
+  std::string model;
+  // The attack's text ("identity", "jpeg:50", ...).
+  std::string attack;
+  // "3d" (model attack) or "2d" (attack on renders).
+  std::string kind;
+  // Gaussians rendered.
+  size_t num_gaussians = 0;
+  // Extraction against the message.
+  ExtractionResult extraction;
+};
+
+struct EvaluationReport {
+  // Gaussians in the raw and watermarked models.
+  size_t raw_gaussians = 0, watermarked_gaussians = 0;
+  // The evaluated views' names.
+  std::vector<std::string> view_names;
+  // The message and its length.
+  Bits message;
+  // Watermarked vs ground truth, watermarked vs raw renders, raw vs ground
+  // truth (context: what the raw model itself reaches).
+  QualityComparison vs_ground_truth, vs_raw, raw_vs_ground_truth;
+  // Why LPIPS is empty ("" when computed).
+  std::string lpips_note;
+  // One row per attack, the raw model's identity row last.
+  std::vector<RobustnessRow> robustness;
+  // Verdict thresholds used.
+  VerificationThresholds thresholds;
+  // Wall time of the evaluation.
+  double seconds = 0;
+};
+
+// Evaluates on `eval_views` (indices into `views`). The raw and watermarked
+// models are rendered from the same cameras; a similarity attack moves the
+// cameras with the scene. `message` must have the decoder's length.
+EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
+                                   const GaussianModel& raw,
+                                   const GaussianModel& watermarked,
+                                   const TrainingViews& views,
+                                   const std::vector<size_t>& eval_views,
+                                   Decoder& decoder, const Bits& message,
+                                   const EvaluationOptions& options);
+
+// The report as JSON (per-view metrics and per-attack results included);
+// non-finite numbers (PSNR of identical images) are written as null.
+std::string EvaluationToJson(const EvaluationReport& report);
+// The report as Markdown: a quality table and a robustness table.
+std::string EvaluationToMarkdown(const EvaluationReport& report);
+
+}  // namespace watergs
