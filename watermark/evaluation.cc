@@ -79,13 +79,11 @@ std::string Format(const char* format, double value) {
 }  // namespace
 
 std::vector<ModelAttackSpec> DefaultModelAttacks() {
-  return ParseModelAttackList(
-      "identity,gn:0.01,dropout:0.1,crop:0.1,sh0,fp16,quant:8,shuffle,"
-      "similarity:30,0.1,-0.2,0.3,1.5,1,1,1,prune:0.05");
+  return ParseModelAttackList(kDefaultModelAttacks);
 }
 
 std::vector<ImageAttackSpec> DefaultImageAttacks() {
-  return ParseImageAttackList("jpeg:75,jpeg:50,resize:0.5,crop:0.5");
+  return ParseImageAttackList(kDefaultImageAttacks);
 }
 
 EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
@@ -120,6 +118,10 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
     cameras.push_back(views.Camera(view));
   }
   Lpips* lpips = options.lpips;
+  if (lpips && (cameras[0].width < 16 || cameras[0].height < 16)) {
+    lpips = nullptr;
+    report.lpips_note = "not computed: images smaller than 16x16 pixels";
+  }
   for (size_t k = 0; k < n; ++k) {
     const std::shared_ptr<const ImageRGB> truth_image =
         views.Image(eval_views[k]);

@@ -22,10 +22,15 @@
 
 namespace watergs {
 
-// identity, gn:0.01, dropout:0.1, crop:0.1 (the paper's defaults), sh0,
-// fp16, quant:8, shuffle, similarity:30,0.1,-0.2,0.3,1.5,1,1,1, prune:0.05.
+// The paper's distortions at its default strengths, then the file attacks.
+inline constexpr char kDefaultModelAttacks[] =
+    "identity,gn:0.01,dropout:0.1,crop:0.1,sh0,fp16,quant:8,shuffle,"
+    "similarity:30,0.1,-0.2,0.3,1.5,1,1,1,prune:0.05";
+inline constexpr char kDefaultImageAttacks[] =
+    "jpeg:75,jpeg:50,resize:0.5,crop:0.5";
+// kDefaultModelAttacks parsed.
 std::vector<ModelAttackSpec> DefaultModelAttacks();
-// jpeg:75, jpeg:50, resize:0.5, crop:0.5.
+// kDefaultImageAttacks parsed.
 std::vector<ImageAttackSpec> DefaultImageAttacks();
 
 struct EvaluationOptions {

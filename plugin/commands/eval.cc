@@ -62,10 +62,8 @@ std::unique_ptr<Lpips> LoadLpipsIfPresent(const std::string& path,
 
 int RunEval(int argc, char** argv) {
   std::string raw_path, input_path, decoder_path, message, output_path;
-  std::string model_attacks =
-      "identity,gn:0.01,dropout:0.1,crop:0.1,sh0,fp16,quant:8,shuffle,"
-      "similarity:30,0.1,-0.2,0.3,1.5,1,1,1,prune:0.05";
-  std::string image_attacks = "jpeg:75,jpeg:50,resize:0.5,crop:0.5";
+  std::string model_attacks = kDefaultModelAttacks;
+  std::string image_attacks = kDefaultImageAttacks;
   std::string lpips_path = "data/lpips/lpips_vgg.bin";
   std::string which_views = "test", background = "0,0,0";
   WorkspaceOptions workspace_options;

@@ -1,7 +1,8 @@
 // Tests of LPIPS-VGG: a weights file written in the documented format (random
 // weights) loads, the distance matches a direct double-precision evaluation
 // of the definition (plain loops, no im2col), is zero for identical images
-// and symmetric; corrupted and truncated files are refused naming the file.
+// and symmetric; corrupted and truncated files are refused naming the file;
+// the evaluation fills its LPIPS column with these distances.
 #include "watermark/lpips.h"
 
 #include <gtest/gtest.h>
@@ -14,6 +15,10 @@
 #include <random>
 
 #include "gaussian/error.h"
+#include "gaussian/rasterizer.h"
+#include "tests/common/look_at.h"
+#include "watermark/evaluation.h"
+#include "watermark/hidden_model.h"
 
 namespace watergs {
 namespace {
@@ -239,9 +244,10 @@ TEST_F(LpipsTest, MatchesTheDefinitionEvaluatedDirectly) {
   const ImageRGB a = RandomImage(18, 17, 1), b = RandomImage(18, 17, 2);
   const double expected = ReferenceLpips(*weights_, a, b);
   EXPECT_GT(expected, 0.0);
-  EXPECT_NEAR(lpips->Distance(a, b), expected, 1e-4 * expected);
-  EXPECT_EQ(lpips->Distance(a, a), 0.0);
-  EXPECT_NEAR(lpips->Distance(b, a), lpips->Distance(a, b), 1e-12);
+  const Lpips::Features fa = lpips->Extract(a), fb = lpips->Extract(b);
+  EXPECT_NEAR(lpips->Distance(fa, fb), expected, 1e-4 * expected);
+  EXPECT_EQ(lpips->Distance(fa, fa), 0.0);
+  EXPECT_NEAR(lpips->Distance(fb, fa), lpips->Distance(fa, fb), 1e-12);
   EXPECT_THROW(lpips->Distance(RandomImage(15, 20, 3), RandomImage(15, 20, 4)),
                Error);
 }
@@ -268,6 +274,65 @@ TEST_F(LpipsTest, RefusesCorruptedTruncatedAndIncompleteFiles) {
           << e.what();
     }
   }
+}
+
+ImageRGB RenderClamped(const GaussianModel& model, const RenderCamera& cam) {
+  ImageRGB image;
+  MakeCpuRasterizer()->Forward(model, cam, RenderOptions{}, &image, nullptr);
+  for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+  return image;
+}
+
+TEST_F(LpipsTest, EvaluationFillsTheLpipsColumn) {
+  auto lpips = Lpips::Load(*path_);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  GaussianModel raw;
+  raw.sh_degree = 0;
+  raw.Resize(200);
+  for (float& v : raw.means) v = u(rng);
+  for (float& v : raw.log_scales) v = -2.5f + 0.3f * u(rng);
+  for (float& v : raw.quats) v = u(rng);
+  for (float& v : raw.opacity_logits) v = 2.f * u(rng);
+  for (float& v : raw.sh_dc) v = u(rng);
+  GaussianModel wm = raw;
+  for (float& v : wm.sh_dc) v += 0.1f;
+  InMemoryViews views;
+  std::vector<RenderCamera> cameras = {
+      LookAtOrigin(Eigen::Vector3d(3, 1, 1), 32, 24),
+      LookAtOrigin(Eigen::Vector3d(-2, 2.5, 0.5), 32, 24)};
+  for (size_t k = 0; k < cameras.size(); ++k) {
+    views.Add("v" + std::to_string(k), cameras[k],
+              RenderClamped(raw, cameras[k]));
+  }
+  HiddenConfig config;
+  config.num_bits = 16;
+  config.channels = 6;
+  config.encoder_blocks = 1;
+  config.decoder_blocks = 2;
+  HiddenModel net(config, false, 3);
+  Decoder decoder(&net);
+  EvaluationOptions options;
+  options.lpips = lpips.get();
+  options.model_attacks = {ParseModelAttack("identity")};
+  options.image_attacks = {};
+  const EvaluationReport report =
+      EvaluateWatermark(*MakeCpuRasterizer(), raw, wm, views, {0, 1}, decoder,
+                        ParseMessage("hex:a5c3", 16), options);
+  EXPECT_EQ(report.lpips_note, "");
+  ASSERT_TRUE(report.vs_raw.mean.has_lpips);
+  double expected = 0;
+  for (const RenderCamera& camera : cameras) {
+    expected += 0.5 * lpips->Distance(RenderClamped(wm, camera),
+                                      RenderClamped(raw, camera));
+  }
+  EXPECT_GT(expected, 0.0);
+  EXPECT_NEAR(report.vs_raw.mean.lpips, expected, 1e-9 * expected);
+  // The ground truth is the raw render itself.
+  EXPECT_EQ(report.raw_vs_ground_truth.mean.lpips, 0.0);
+  EXPECT_NEAR(report.vs_ground_truth.mean.lpips, expected, 1e-9 * expected);
+  EXPECT_TRUE(std::isinf(report.raw_vs_ground_truth.mean.psnr));
+  ASSERT_EQ(report.robustness.size(), 2u);
 }
 
 TEST(MaxPool2x2, TakesTheBlockMaximumAndDropsOddEdges) {
