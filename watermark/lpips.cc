@@ -180,6 +180,26 @@ std::unique_ptr<Lpips> Lpips::Load(const std::string& path) {
   return lpips;
 }
 
+std::unique_ptr<Lpips> Lpips::WithRandomWeights(uint32_t seed) {
+  std::unique_ptr<Lpips> lpips(new Lpips());
+  lpips->shift_ = {0.f, 0.f, 0.f};
+  lpips->scale_ = {0.5f, 0.5f, 0.5f};
+  std::mt19937 rng(seed);
+  int in = 3;
+  for (int k = 0; k < 13; ++k) {
+    lpips->convs_.push_back(
+        std::make_unique<Conv2d>("features." + std::to_string(kConvIndices[k]),
+                                 in, kConvWidths[k], 3, &rng));
+    in = kConvWidths[k];
+  }
+  std::uniform_real_distribution<float> positive(0.f, 1.f);
+  for (int l = 0; l < 5; ++l) {
+    lpips->heads_[l].resize(kTapChannels[l]);
+    for (float& w : lpips->heads_[l]) w = positive(rng);
+  }
+  return lpips;
+}
+
 Lpips::Features Lpips::Extract(const ImageRGB& image) {
   if (image.width < 16 || image.height < 16) {
     Fail("LPIPS: image " + std::to_string(image.width) + "x" +

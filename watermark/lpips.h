@@ -14,6 +14,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -33,6 +34,9 @@ class Lpips {
   // Reads a weights file; throws Error naming the file when it is missing,
   // truncated, fails its CRC, or lacks a tensor or has a wrong shape.
   static std::unique_ptr<Lpips> Load(const std::string& path);
+  // The same network with random weights (for benchmarks: cost does not
+  // depend on the weights).
+  static std::unique_ptr<Lpips> WithRandomWeights(uint32_t seed);
 
   // The five unit-normalised VGG taps of one image.
   struct Features {
