@@ -111,6 +111,11 @@ void ReadModel(Reader& r, const std::string& path, GaussianModel* m) {
       m->sh_rest.size() != n * m->sh_rest_stride()) {
     FailAt(path, "checkpoint model arrays have inconsistent sizes");
   }
+  // A checksum-valid file with NaN parameters would poison a resumed run.
+  if (const size_t bad = m->CountNonFinite(); bad > 0) {
+    FailAt(path, "checkpoint model has " + std::to_string(bad) +
+                     " values that are not finite");
+  }
 }
 
 }  // namespace

@@ -537,6 +537,13 @@ void CheckVertexCount(const std::string& path, uint64_t n, uint64_t data_bytes,
                      std::to_string(data_bytes) +
                      " bytes of vertex data (truncated or corrupt)");
   }
+  // Binary data must end with the last vertex: extra bytes mean the count
+  // disagrees with the data.
+  if (layout.format != PlyFormat::kAscii && n * row < data_bytes) {
+    FailAt(path, std::to_string(data_bytes - n * row) +
+                     " bytes after the last of the " + std::to_string(n) +
+                     " vertices the header declares (corrupt file)");
+  }
 }
 
 // ---------------------------------------------------------------- writer ---

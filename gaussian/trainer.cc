@@ -186,6 +186,12 @@ IterationStats Trainer::Step() {
   }
   const DensityEvent event =
       strategy_->PostBackward(it, grads_, radii, &model_, &adam_);
+  if (model_.size() == 0) {
+    FlushLog();
+    Fail("training stopped at iteration " + std::to_string(it) +
+         ": density control pruned every Gaussian (all nearly transparent "
+         "or too large)");
+  }
   auto t4 = Clock::now();
   const double c4 = ProcessCpuSeconds();
   // Inria: tensors replaced by densification or an opacity reset have no
@@ -268,8 +274,10 @@ void Trainer::Run() {
     }
     if (options_.checkpoint_every > 0 && it % options_.checkpoint_every == 0 &&
         !options_.checkpoint_path.empty()) {
-      SaveCheckpoint(options_.checkpoint_path);
+      // Log first: a kill between the two then leaves log lines past the
+      // checkpoint (dropped on resume), never a gap before it.
       FlushLog();
+      SaveCheckpoint(options_.checkpoint_path);
       last_flush = Clock::now();
     } else if (Seconds(last_flush, Clock::now()) > 30) {
       FlushLog();

@@ -172,6 +172,10 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
          " bits, the decoder reads " + std::to_string(decoder_->NumBits()));
   }
   if (model_.size() == 0) Fail("embed: the model has no Gaussians");
+  if (std::none_of(options_.trainable.begin(), options_.trainable.end(),
+                   [](bool t) { return t; })) {
+    Fail("embed: the mask leaves no trainable parameter group");
+  }
   targets_.assign(message_.begin(), message_.end());
   if (!options_.distortions.empty()) {
     sampler_ = std::make_unique<DistortionSampler>(options_.distortions);
@@ -290,6 +294,10 @@ EmbedStepStats Embedder::Step() {
   }
   const DensityEvent event =
       strategy_->PostBackward(it, grads_, radii, &model_, &adam_);
+  if (model_.size() == 0) {
+    Fail("embed stopped at iteration " + std::to_string(it) +
+         ": density control pruned every Gaussian");
+  }
   if (event.densified) {
     std::vector<int64_t> origin(event.parent.size());
     for (size_t i = 0; i < origin.size(); ++i) {

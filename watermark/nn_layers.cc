@@ -324,7 +324,14 @@ double BceWithLogits(const Tensor& logits, const std::vector<float>& targets,
   double total = 0.0;
   for (size_t i = 0; i < n; ++i) {
     const double z = logits.data[i], t = targets[i];
-    total += std::max(z, 0.0) - z * t + std::log1p(std::exp(-std::abs(z)));
+    // softplus(z) - z t as (1 - t) softplus(z) + t softplus(-z), each term
+    // skipped at weight 0, so that an infinite logit costs 0 for the bit it
+    // predicts and +inf for the other (never inf - inf = NaN).
+    auto softplus = [](double x) {
+      return std::max(x, 0.0) + std::log1p(std::exp(-std::abs(x)));
+    };
+    if (t != 1) total += (1 - t) * softplus(z);
+    if (t != 0) total += t * softplus(-z);
     if (dlogits) {
       // sigmoid without overflow for either sign.
       const double e = std::exp(-std::abs(z));

@@ -114,7 +114,8 @@ class Linear {
 
 // Mean over all elements of the binary cross-entropy between sigmoid(logits)
 // and targets in {0,1} (or [0,1]); dlogits (if not null) gets its gradient.
-// Stable for any finite logit: max(z,0) - z t + log1p(exp(-|z|)).
+// Stable for any logit: (1 - t) softplus(z) + t softplus(-z); an infinite
+// logit costs 0 for the bit it predicts, +inf for the other.
 double BceWithLogits(const Tensor& logits, const std::vector<float>& targets,
                      Tensor* dlogits);
 

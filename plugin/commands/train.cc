@@ -60,6 +60,7 @@ struct TrainArgs {
   bool resume = false;
   std::string test_iterations = "7000,30000";
   int64_t log_every = 10;
+  int64_t densify_from_iter = 500;
   int64_t densify_until_iter = 15000;
   bool compact_optimizer = false;
 };
@@ -141,6 +142,8 @@ int RunTrain(int argc, char** argv) {
   parser.Add("test_iterations", &a.test_iterations,
              "Iterations at which held-out PSNR is logged (with --eval)");
   parser.Add("log_every", &a.log_every, "Write a log line every N iterations");
+  parser.Add("densify_from_iter", &a.densify_from_iter,
+             "First iteration of adaptive density control (Inria: 500)");
   parser.Add("densify_until_iter", &a.densify_until_iter,
              "Last iteration of adaptive density control (Inria: 15000)");
   parser.AddFlag("compact_optimizer", &a.compact_optimizer,
@@ -184,6 +187,7 @@ int RunTrain(int argc, char** argv) {
   options.seed = static_cast<uint64_t>(a.seed);
   options.adam.position_lr_max_steps = a.iterations;
   options.adam.compact_moments = a.compact_optimizer;
+  options.density.densify_from_iter = a.densify_from_iter;
   options.density.densify_until_iter = a.densify_until_iter;
   options.density.white_background =
       background == std::array<float, 3>{1, 1, 1};
