@@ -267,8 +267,11 @@ size_t Adam::StepGroup(ParamGroup group, const std::vector<float>& grad,
                        int stride, std::vector<float>* params) {
   AdamGroupState& s = groups_[Index(group)];
   // torch.optim.Adam (single-tensor path), in float like torch.
-  const auto [step_size, bias2_sqrt, w1, beta2, w2, eps] =
-      NextStepConstants(group, &s);
+  // Plain copies, not a structured binding, since the lambda below captures
+  // them (clang before 16 cannot capture structured bindings).
+  const StepConstants k = NextStepConstants(group, &s);
+  const float step_size = k.step_size, bias2_sqrt = k.bias2_sqrt, w1 = k.w1,
+              beta2 = k.beta2, w2 = k.w2, eps = k.eps;
   const std::vector<uint8_t>& mask = masks_[Index(group)];
   const bool use_mask = !mask.empty();
   float* p = params->data();
@@ -323,8 +326,11 @@ size_t Adam::StepGroupCompact(ParamGroup group, const std::vector<float>& grad,
                               int stride, std::vector<float>* params) {
   AdamGroupState& s = groups_[Index(group)];
   // torch.optim.Adam (single-tensor path), in float like torch.
-  const auto [step_size, bias2_sqrt, w1, beta2, w2, eps] =
-      NextStepConstants(group, &s);
+  // Plain copies, not a structured binding, since the lambda below captures
+  // them (clang before 16 cannot capture structured bindings).
+  const StepConstants k = NextStepConstants(group, &s);
+  const float step_size = k.step_size, bias2_sqrt = k.bias2_sqrt, w1 = k.w1,
+              beta2 = k.beta2, w2 = k.w2, eps = k.eps;
   const std::vector<uint8_t>& mask = masks_[Index(group)];
   const bool use_mask = !mask.empty();
   float* p = params->data();
