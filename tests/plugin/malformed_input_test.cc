@@ -229,6 +229,60 @@ void MakeWorkspace(const std::string& ws, const std::string& name_prefix) {
   }
 }
 
+// `bytes` cut to half its length into `path` (plain write).
+void WriteHalf(const std::string& path, const std::vector<uint8_t>& bytes) {
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(bytes.data()), bytes.size() / 2);
+}
+
+TEST(MalformedInputCli, TruncatedInputsOfEveryKind) {
+  // A truncated model, PLY, checkpoint and decoder each stop their command
+  // with one line naming the file, and the failed command writes nothing.
+  testing::TempDir dir("truncated_cli");
+  const std::string ws = dir / "ws";
+  MakeWorkspace(ws, "");
+  const std::string out = dir / "out";
+  const std::string train = WatergsBin() + " train --workspace_path " + ws +
+                            " --output_path " + out +
+                            " --iterations 4 --checkpoint_every 2 "
+                            "--sh_degree 0 --num_threads 1";
+  ASSERT_EQ(RunCommand(train).exit_code, 0);
+  const std::string model = dir / "model";
+  ASSERT_EQ(
+      RunCommand(WatergsBin() + " model_converter --input_path " + ws +
+                 "/sparse/0 --output_path " + model + " --output_type BIN")
+          .exit_code,
+      0);
+  WriteHalf(model + "/points3D.bin", ReadFileBytes(model + "/points3D.bin"));
+  ExpectCliError(RunCommand(WatergsBin() + " model_info --input_path " + model),
+                 model + "/points3D.bin: ");
+  const std::string ply = dir / "half.ply";
+  WriteHalf(ply, ReadFileBytes(out + "/point_cloud.ply"));
+  ExpectCliError(RunCommand(WatergsBin() + " ply_info --input_path " + ply),
+                 ply + ": ");
+  ExpectCliError(
+      RunCommand(WatergsBin() + " attack --input_path " + ply +
+                 " --attack identity --output_path " + dir / "attacked.ply"),
+      ply + ": ");
+  EXPECT_FALSE(fs::exists(dir / "attacked.ply"));
+  // A truncated checkpoint: --resume refuses it and leaves every output as
+  // it was.
+  const std::string checkpoint = out + "/checkpoint.ckpt";
+  WriteHalf(checkpoint, ReadFileBytes(checkpoint));
+  const std::vector<uint8_t> cut = ReadFileBytes(checkpoint);
+  const std::vector<uint8_t> cloud = ReadFileBytes(out + "/point_cloud.ply");
+  ExpectCliError(RunCommand(train + " --resume"), checkpoint + ": ");
+  EXPECT_EQ(ReadFileBytes(checkpoint), cut);
+  EXPECT_EQ(ReadFileBytes(out + "/point_cloud.ply"), cloud);
+  // A decoder file that is not one (here: half a PLY).
+  ExpectCliError(
+      RunCommand(WatergsBin() + " embed --input_path " + out +
+                 "/point_cloud.ply --workspace_path " + ws + " --decoder " +
+                 ply + " --message hex:a5 --output_path " + dir / "wm.ply"),
+      ply + ": ");
+  EXPECT_FALSE(fs::exists(dir / "wm.ply"));
+}
+
 TEST(MalformedInputCli, NonAsciiWorkspaceAndImageNames) {
   testing::TempDir dir("non_ascii");
   const std::string ws = dir / "données_日本/ws";
