@@ -22,11 +22,13 @@ std::string TemporaryPathFor(const std::string& path) {
   return name.str();
 }
 
-void FsyncPath(const std::string& path, int flags) {
+// fsync of `path` opened with `flags`; returns 0 or the errno of a failure.
+int FsyncPath(const std::string& path, int flags) {
   const int fd = ::open(path.c_str(), flags);
-  if (fd < 0) return;
-  ::fsync(fd);
+  if (fd < 0) return errno;
+  const int error = ::fsync(fd) == 0 ? 0 : errno;
   ::close(fd);
+  return error;
 }
 
 }  // namespace
@@ -68,7 +70,13 @@ void AtomicWriteFile(const std::string& path,
                          std::strerror(errno));
       }
     }
-    FsyncPath(tmp, O_RDONLY);
+    // Delayed allocation can report a full disk only here; folders and
+    // filesystems that cannot fsync at all (EINVAL) are fine.
+    const int sync_error = FsyncPath(tmp, O_RDONLY);
+    if (sync_error == EIO || sync_error == ENOSPC || sync_error == EDQUOT) {
+      FailAt(path,
+             std::string("cannot flush to disk: ") + std::strerror(sync_error));
+    }
     std::filesystem::rename(tmp, target, ec);
     if (ec) FailAt(path, "cannot rename temporary into place: " + ec.message());
     FsyncPath(dir.string(), O_RDONLY | O_DIRECTORY);
