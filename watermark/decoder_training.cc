@@ -52,7 +52,7 @@ double BatchPsnr(const Tensor& cover, const Tensor& watermarked) {
 
 void SaveCheckpoint(const std::string& path, HiddenModel& model,
                     const NetworkAdam& adam, int64_t step, float image_weight,
-                    const DecoderTrainingOptions& options) {
+                    float psnr_target, const DecoderTrainingOptions& options) {
   NetworkFile file = HiddenModelToFile(model, true);
   file.kind = kCheckpointKind;
   file.meta.emplace_back("step", step);
@@ -62,6 +62,9 @@ void SaveCheckpoint(const std::string& path, HiddenModel& model,
   // Adapted image weight, stored in millionths.
   file.meta.emplace_back("image_weight_micro",
                          int64_t(std::llround(double(image_weight) * 1e6)));
+  // Current PSNR target of the accuracy-gated ramp, in millidecibels.
+  file.meta.emplace_back("psnr_target_milli",
+                         int64_t(std::llround(double(psnr_target) * 1e3)));
   const auto& params = adam.params();
   for (size_t k = 0; k < params.size(); ++k) {
     if (!params[k]->trainable) continue;
@@ -76,6 +79,7 @@ void SaveCheckpoint(const std::string& path, HiddenModel& model,
 // Restores model weights, Adam state and counters; returns the step.
 int64_t LoadCheckpoint(const std::string& path, HiddenModel* model,
                        NetworkAdam* adam, float* image_weight,
+                       float* psnr_target,
                        const DecoderTrainingOptions& options) {
   const NetworkFile file = ReadNetworkFile(path);
   if (file.kind != kCheckpointKind) FailAt(path, "not a training checkpoint");
@@ -98,10 +102,27 @@ int64_t LoadCheckpoint(const std::string& path, HiddenModel* model,
   }
   adam->step = file.Meta("adam_step", path);
   *image_weight = float(file.Meta("image_weight_micro", path) * 1e-6);
+  // Checkpoints written before the gated ramp existed lack the field.
+  for (const auto& [key, value] : file.meta)
+    if (key == "psnr_target_milli") *psnr_target = float(value * 1e-3);
   return file.Meta("step", path);
 }
 
 }  // namespace
+
+float NextPsnrTarget(const DecoderTrainingOptions& options, int64_t step,
+                     double running_accuracy, float current) {
+  const float start = options.target_psnr_start, end = options.target_psnr;
+  if (options.psnr_ramp_steps <= 0) return end;
+  const float per_step = (end - start) / float(options.psnr_ramp_steps);
+  if (options.accuracy_gate > 0) {
+    if (running_accuracy < options.accuracy_gate) return current;
+    return per_step >= 0 ? std::min(end, current + per_step)
+                         : std::max(end, current + per_step);
+  }
+  if (step >= options.psnr_ramp_steps) return end;
+  return start + per_step * float(step);
+}
 
 void PhotoToTensor(const cv::Mat& photo, int x0, int y0, int b, Tensor* batch) {
   const size_t hw = batch->PlaneSize();
@@ -226,8 +247,10 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
   float image_weight = options.image_weight;
   const std::string checkpoint = options.output_path + ".ckpt";
   int64_t step = 0;
+  float psnr_target = options.target_psnr_start;
   if (options.resume && std::filesystem::exists(checkpoint)) {
-    step = LoadCheckpoint(checkpoint, &model, &adam, &image_weight, options);
+    step = LoadCheckpoint(checkpoint, &model, &adam, &image_weight,
+                          &psnr_target, options);
     std::cerr << "resumed from " << checkpoint << " at step " << step << "\n";
   }
   const int steps_per_epoch =
@@ -265,19 +288,17 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
     running_bce += a * (bce - running_bce);
     running_acc += a * (r.accuracy - running_acc);
     if (options.target_psnr > 0) {
-      float target = options.target_psnr;
-      if (step < options.psnr_ramp_steps)
-        target = options.target_psnr_start +
-                 (options.target_psnr - options.target_psnr_start) *
-                     float(step) / float(options.psnr_ramp_steps);
-      image_weight = std::clamp(
-          image_weight * (psnr < target ? 1.02f : 1.f / 1.02f), 1e-4f, 1e4f);
+      psnr_target = NextPsnrTarget(options, step, running_acc, psnr_target);
+      image_weight =
+          std::clamp(image_weight * (psnr < psnr_target ? 1.02f : 1.f / 1.02f),
+                     1e-4f, 1e4f);
     }
     std::ostringstream status;
     status.setf(std::ios::fixed);
     status.precision(3);
     status << "bce " << running_bce << " acc " << 100 * running_acc << "% psnr "
            << running_psnr << " w_img " << image_weight;
+    if (options.target_psnr > 0) status << " target " << psnr_target;
     progress.Update(step + 1, status.str());
 
     const bool epoch_end = (step + 1) % steps_per_epoch == 0;
@@ -287,7 +308,8 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
     if (epoch_end || out_of_time ||
         (options.checkpoint_every > 0 &&
          (step + 1) % options.checkpoint_every == 0))
-      SaveCheckpoint(checkpoint, model, adam, step + 1, image_weight, options);
+      SaveCheckpoint(checkpoint, model, adam, step + 1, image_weight,
+                     psnr_target, options);
     if (epoch_end && !held_out.empty())
       std::cout << "epoch " << (step + 1) / steps_per_epoch << ": "
                 << FormatValidation(

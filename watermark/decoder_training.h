@@ -43,6 +43,10 @@ struct DecoderTrainingOptions {
   // decoder find the message, which is then made quieter.
   float target_psnr_start = 24.f;
   int psnr_ramp_steps = 0;
+  // > 0: the PSNR target advances (by one ramp step) only on steps whose
+  // running training bit accuracy is at least this (0..1), so the watermark
+  // gets quieter only as fast as the decoder keeps reading it.
+  float accuracy_gate = 0.f;
   // Noise layers sampled uniformly, one per step.
   std::vector<NoiseKind> noise = {NoiseKind::kIdentity};
   bool resume = false;
@@ -94,6 +98,13 @@ StepResult TrainStep(HiddenModel& model, NetworkAdam& adam, ImageNoise& noise,
                      NoiseKind kind, const Tensor& cover,
                      const std::vector<float>& targets, float image_weight,
                      std::mt19937* rng, StepBuffers* buffers);
+
+// PSNR target after `step` (0-based): the linear ramp from
+// target_psnr_start to target_psnr over psnr_ramp_steps, or, with an
+// accuracy gate, `current` advanced by one ramp step only when
+// `running_accuracy` >= the gate (never past target_psnr).
+float NextPsnrTarget(const DecoderTrainingOptions& options, int64_t step,
+                     double running_accuracy, float current);
 
 // Runs the whole training; writes output_path (atomically) at the end.
 void TrainDecoder(const DecoderTrainingOptions& options);

@@ -48,6 +48,10 @@ int RunTrainDecoder(int argc, char** argv) {
              "PSNR target at step 0, ramped to --target_psnr");
   parser.Add("psnr_ramp_steps", &options.psnr_ramp_steps,
              "steps over which the PSNR target ramps (0: no ramp)");
+  double accuracy_gate = 0;
+  parser.Add("accuracy_gate", &accuracy_gate,
+             "if > 0, the PSNR target ramps only while the running training "
+             "bit accuracy is at least this (0..1)");
   parser.Add("noise", &noise,
              "noise layers sampled per step: identity,crop,dropout,resize,"
              "blur,jpeg");
@@ -75,6 +79,7 @@ int RunTrainDecoder(int argc, char** argv) {
   options.image_weight = float(image_weight);
   options.target_psnr = float(target_psnr);
   options.target_psnr_start = float(target_psnr_start);
+  options.accuracy_gate = float(accuracy_gate);
   options.seed = uint32_t(seed);
   if (validate_only) {
     if (options.validation_path.empty())
