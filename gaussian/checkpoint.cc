@@ -65,6 +65,8 @@ class Reader {
   }
   void Raw(void* out, size_t size) {
     if (size > size_ - pos_) FailAt(path_, "checkpoint is truncated");
+    // An empty vector's data() may be null, which memcpy must not get.
+    if (size == 0) return;
     std::memcpy(out, data_ + pos_, size);
     pos_ += size;
   }
@@ -181,6 +183,13 @@ TrainingCheckpoint ReadCheckpoint(const std::string& path) {
   c.active_sh_degree = r.Pod<int32_t>();
   c.elapsed_seconds = r.Pod<double>();
   ReadModel(r, path, &c.model);
+  // Resuming evaluates SH up to this degree over the model's coefficients.
+  if (c.active_sh_degree < 0 || c.active_sh_degree > c.model.sh_degree) {
+    FailAt(path, "checkpoint has active SH degree " +
+                     std::to_string(c.active_sh_degree) +
+                     " for a model of degree " +
+                     std::to_string(c.model.sh_degree));
+  }
   for (AdamGroupState& g : c.adam) {
     r.Vector(&g.exp_avg);
     r.Vector(&g.exp_avg_sq);

@@ -224,6 +224,12 @@ void ReadImagesBinary(const std::string& path, Reconstruction* out) {
     for (int k = 0; k < 3; ++k) image.tvec(k) = reader.Read<double>("tvec");
     image.camera_id = reader.Read<camera_t>("camera_id");
     image.name = reader.ReadNullTerminated("image name");
+    // images.txt cannot hold such a name, and the one-line errors that
+    // quote it would break.
+    if (image.name.find_first_of("\n\r") != std::string::npos) {
+      FailAt(path, "image " + std::to_string(image.image_id) +
+                       ": name contains a line break");
+    }
     const uint64_t num_points2D = reader.ReadCount(
         "points2D in image " + std::to_string(image.image_id), kPoint2DBytes);
     image.points2D.resize(num_points2D);

@@ -9,6 +9,8 @@ pkgs=(build-essential cmake git pkg-config clang-format
 # Regeneration only: datasets_scripts/make_demo_scene.sh (POV-Ray renders) and the download_*.sh scripts.
 # The committed demo scene needs none of them; they are small, so they are installed anyway.
 pkgs+=(povray povray-includes unzip curl)
+# Fuzzing only (scripts/fuzz.sh): clang and its libFuzzer/sanitizer runtimes.
+pkgs+=(clang libclang-rt-14-dev)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -7,6 +7,22 @@
 namespace watergs {
 namespace {
 
+// `text` with control characters written as \xNN, so that an error quoting
+// what the owner typed stays on one line.
+std::string Printable(const std::string& text) {
+  static const char* kHex = "0123456789abcdef";
+  std::string out;
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7f) {
+      out += std::string("\\x") + kHex[byte >> 4] + kHex[byte & 15];
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
 bool StartsWith(const std::string& s, const std::string& prefix) {
   return s.compare(0, prefix.size(), prefix) == 0;
 }
@@ -24,7 +40,8 @@ Bits ParseHex(const std::string& digits, const std::string& original) {
   for (char c : digits) {
     const int v = HexValue(c);
     if (v < 0)
-      Fail("message `" + original + "`: `" + c + "` is not a hex digit");
+      Fail("message `" + Printable(original) + "`: `" +
+           Printable(std::string(1, c)) + "` is not a hex digit");
     for (int b = 3; b >= 0; --b) bits.push_back((v >> b) & 1);
   }
   return bits;
@@ -34,7 +51,8 @@ Bits ParseBitString(const std::string& digits, const std::string& original) {
   Bits bits;
   for (char c : digits) {
     if (c != '0' && c != '1') {
-      Fail("message `" + original + "`: `" + c + "` is not 0 or 1");
+      Fail("message `" + Printable(original) + "`: `" +
+           Printable(std::string(1, c)) + "` is not 0 or 1");
     }
     bits.push_back(c == '1');
   }
@@ -83,10 +101,11 @@ Bits ParseMessage(const std::string& text, int num_bits) {
   } else {
     bits = ParseText(text);
   }
-  if (bits.empty()) Fail("message `" + text + "` is empty");
+  if (bits.empty()) Fail("message `" + Printable(text) + "` is empty");
   if (static_cast<int>(bits.size()) > num_bits) {
-    Fail("message `" + text + "` needs " + std::to_string(bits.size()) +
-         " bits but the decoder reads " + std::to_string(num_bits));
+    Fail("message `" + Printable(text) + "` needs " +
+         std::to_string(bits.size()) + " bits but the decoder reads " +
+         std::to_string(num_bits));
   }
   const Bits padding = PaddingBits(num_bits);
   for (size_t i = bits.size(); i < static_cast<size_t>(num_bits); ++i) {

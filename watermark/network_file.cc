@@ -1,6 +1,7 @@
 // Reading and writing the network container (format in network_file.h).
 #include "watermark/network_file.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "gaussian/error.h"
@@ -40,10 +41,18 @@ class Reader {
     Need(length);
     std::string s(reinterpret_cast<const char*>(data_ + pos_), length);
     pos_ += length;
+    // Names are identifiers; a control character (a newline would split the
+    // one-line errors that quote the name) means corruption.
+    for (const char c : s) {
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+        FailAt(path_, "corrupted (name with a control character)");
+    }
     return s;
   }
   void GetFloats(float* out, size_t count) {
     if (count > (size_ - pos_) / sizeof(float)) Need(size_ + 1);
+    // An empty tensor's data() may be null, which memcpy must not get.
+    if (count == 0) return;
     std::memcpy(out, data_ + pos_, count * sizeof(float));
     pos_ += count * sizeof(float);
   }
@@ -146,13 +155,16 @@ NetworkFile ParseNetworkFile(const std::string& path,
     t.name = in.GetString();
     const uint32_t rank = in.Get<uint32_t>();
     if (rank > 8) FailAt(path, "corrupted (tensor " + t.name + " of rank > 8)");
+    // The product saturates: eight large dims must not wrap around to a
+    // small count that the size check below would accept.
+    constexpr size_t kCountCap = size_t(1) << 39;
     size_t count = 1;
     for (uint32_t r = 0; r < rank; ++r) {
       const int32_t d = in.Get<int32_t>();
       if (d < 0 || d > (1 << 24))
         FailAt(path, "corrupted (tensor " + t.name + ")");
       t.shape.push_back(d);
-      count *= size_t(d);
+      count = std::min(count * size_t(d), kCountCap);
     }
     if (count > in.remaining() / sizeof(float))
       FailAt(path, "truncated network file (tensor " + t.name + ")");

@@ -1,0 +1,203 @@
+// Writes the fuzz targets' seed corpora: small valid inputs of every format,
+// made with the project's own writers from the committed demo scene and from
+// small synthetic models, so that no binary seed needs to be committed.
+//   watergs_fuzz_seeds <out_dir>   ->  <out_dir>/<target>/<seed>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <sstream>
+
+#include "fuzz/fuzz_support.h"
+#include "gaussian/checkpoint.h"
+#include "gaussian/file_util.h"
+#include "gaussian/ply_io.h"
+#include "plugin/camera_models.h"
+#include "watermark/hidden_model.h"
+#include "watermark/network_file.h"
+
+namespace watergs::fuzz {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string SeedPath(const std::string& out, const std::string& target,
+                     const std::string& name) {
+  CreateDirectories(out + "/" + target);
+  return out + "/" + target + "/" + name;
+}
+
+void WritePlySeeds(const std::string& out) {
+  WritePly(SeedPath(out, "ply", "inria_sh0.ply"), SmallModel(3, 0, 1));
+  WritePly(SeedPath(out, "ply", "inria_sh1.ply"), SmallModel(2, 1, 2));
+  WritePly(SeedPath(out, "ply", "inria_sh3.ply"), SmallModel(1, 3, 3));
+  WritePly(SeedPath(out, "ply", "empty.ply"), SmallModel(0, 0, 4));
+  PlyLayout ascii = InriaPlyLayout(0, 2);
+  ascii.format = PlyFormat::kAscii;
+  ascii.comments.push_back({"comment written by watergs_fuzz_seeds", 0});
+  WritePly(SeedPath(out, "ply", "ascii_sh0.ply"), SmallModel(2, 0, 5), ascii);
+  // Big-endian, CRLF, double and integer properties, an extra property.
+  PlyLayout mixed = InriaPlyLayout(1, 2);
+  mixed.format = PlyFormat::kBinaryBigEndian;
+  mixed.line_ending = "\r\n";
+  mixed.properties[0].type = PlyType::kFloat64;
+  mixed.properties[0].type_name = "double";
+  mixed.properties[3].type = PlyType::kUint8;
+  mixed.properties[3].type_name = "uchar";
+  mixed.properties.push_back({"confidence", PlyType::kInt16, "int16"});
+  mixed.ZeroExtras(2);
+  WritePly(SeedPath(out, "ply", "mixed_sh1.ply"), SmallModel(2, 1, 6), mixed);
+}
+
+void WriteColmapSeeds(const std::string& out) {
+  const Reconstruction subset = DemoSubset();
+  AtomicWriteFile(SeedPath(out, "cameras_bin", "demo.bin"),
+                  CamerasBinary(subset));
+  AtomicWriteFile(SeedPath(out, "images_bin", "demo.bin"),
+                  ImagesBinary(subset));
+  AtomicWriteFile(SeedPath(out, "points3D_bin", "demo.bin"),
+                  Points3DBinary(subset));
+  AtomicWriteFile(SeedPath(out, "cameras_txt", "demo.txt"),
+                  CamerasText(subset));
+  AtomicWriteFile(SeedPath(out, "images_txt", "demo.txt"), ImagesText(subset));
+  AtomicWriteFile(SeedPath(out, "points3D_txt", "demo.txt"),
+                  Points3DText(subset));
+  // One camera of every COLMAP model, so that each parameter layout is seen.
+  Reconstruction all_models;
+  for (int model_id = 0; model_id < kNumCameraModels; ++model_id) {
+    Camera camera;
+    camera.camera_id = static_cast<camera_t>(model_id + 1);
+    camera.model_id = model_id;
+    camera.width = 640;
+    camera.height = 480;
+    camera.params.assign(CameraModelNumParams(model_id), 0.01);
+    for (int i = 0; i < 4 && i < CameraModelNumParams(model_id); ++i) {
+      camera.params[i] = 300.0 + i;
+    }
+    all_models.AddCamera(camera);
+  }
+  AtomicWriteFile(SeedPath(out, "cameras_bin", "all_models.bin"),
+                  CamerasBinary(all_models));
+  AtomicWriteFile(SeedPath(out, "cameras_txt", "all_models.txt"),
+                  CamerasText(all_models));
+}
+
+// DensityStrategy::SaveState's bytes for n Gaussians: three u64-counted
+// vectors (gradient sums, counts, max radii) and the RNG in text form.
+std::string DensityState(size_t n) {
+  std::string bytes;
+  for (size_t element_size : {sizeof(float), sizeof(uint16_t), sizeof(float)}) {
+    const uint64_t count = n;
+    bytes.append(reinterpret_cast<const char*>(&count), sizeof(count));
+    bytes.append(n * element_size, '\0');
+  }
+  std::ostringstream rng;
+  rng << std::mt19937_64(42);
+  return bytes + rng.str();
+}
+
+// A training checkpoint shaped as the trainer writes one (Adam moments per
+// group, full or compact), or (embed = true) as the embedder does, with its
+// JSON state in rng_state.
+TrainingCheckpoint SmallCheckpoint(bool compact_moments, bool embed) {
+  TrainingCheckpoint c;
+  c.iteration = 7;
+  c.active_sh_degree = 1;
+  c.elapsed_seconds = 1.5;
+  c.model = SmallModel(2, 1, 7);
+  const size_t n = c.model.size();
+  const int strides[kNumParamGroups] = {3, 3, c.model.sh_rest_stride(),
+                                        1, 3, 4};
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    AdamGroupState& state = c.adam[g];
+    if (compact_moments) {
+      state.exp_avg_q.assign(n * strides[g], 3);
+      state.exp_avg_sq_shared.assign(n, 0.25f);
+    } else {
+      state.exp_avg.assign(n * strides[g], 0.5f);
+      state.exp_avg_sq.assign(n * strides[g], 0.25f);
+    }
+    state.step = 7;
+  }
+  c.density_state = DensityState(n);
+  std::ostringstream rng;
+  rng << std::mt19937_64(42);
+  c.rng_state = embed ? "{\"origin\":[0,1],\"rng\":\"1 2 3\"}" : rng.str();
+  c.view_stack = {1, 0};
+  c.run_signature = "{\"iterations\":30000}";
+  return c;
+}
+
+void WriteCheckpointSeeds(const std::string& out) {
+  WriteCheckpoint(SeedPath(out, "checkpoint", "train.ckpt"),
+                  SmallCheckpoint(false, false));
+  WriteCheckpoint(SeedPath(out, "checkpoint", "train_compact.ckpt"),
+                  SmallCheckpoint(true, false));
+  WriteCheckpoint(SeedPath(out, "checkpoint", "embed.ckpt"),
+                  SmallCheckpoint(false, true));
+}
+
+void WriteNetworkSeeds(const std::string& out) {
+  HiddenConfig config;
+  config.num_bits = 8;
+  config.channels = 2;
+  config.encoder_blocks = 1;
+  config.decoder_blocks = 1;
+  HiddenModel model(config, /*with_encoder=*/true, 1);
+  WriteNetworkFile(SeedPath(out, "network_file", "hidden_decoder.bin"),
+                   HiddenModelToFile(model, false));
+  WriteNetworkFile(SeedPath(out, "network_file", "hidden_both.bin"),
+                   HiddenModelToFile(model, true));
+  NetworkFile plain;
+  plain.kind = "hidden-checkpoint";
+  plain.meta = {{"step", 3}, {"num_bits", 8}};
+  plain.tensors = {{"scalar", {}, {1.f}},
+                   {"matrix", {2, 3}, {1, 2, 3, 4, 5, 6}},
+                   {"empty", {0, 4}, {}}};
+  WriteNetworkFile(SeedPath(out, "network_file", "plain.bin"), plain);
+}
+
+void WriteTextSeed(const std::string& path, const std::string& text) {
+  AtomicWriteFile(path, text);
+}
+
+void WriteMessageSeeds(const std::string& out) {
+  // First byte 12: 49-bit decoder (see message_fuzzer.cc).
+  const std::string l = "\x0c";
+  int i = 0;
+  for (const char* text : {"hex:0123456789ab", "0xDEADBEEF", "bits:010011",
+                           "text:hello", "h\xc3\xa9llo", "WATERGS"}) {
+    WriteTextSeed(SeedPath(out, "message", "seed" + std::to_string(i++)),
+                  l + text);
+  }
+}
+
+void WriteProjectIniSeeds(const std::string& out) {
+  WriteTextSeed(SeedPath(out, "project_ini", "full.ini"),
+                "# a project file\nmodel_path = scene/model.ply\n"
+                "output_path = out\niterations = 100\nseed = -3\n"
+                "lambda = 0.5e-1\nquiet = true\n");
+  WriteTextSeed(SeedPath(out, "project_ini", "minimal.ini"), "output_path=o\n");
+}
+
+}  // namespace
+}  // namespace watergs::fuzz
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s <out_dir>\n", argv[0]);
+    return 2;
+  }
+  const std::string out = argv[1];
+  try {
+    watergs::fuzz::WritePlySeeds(out);
+    watergs::fuzz::WriteColmapSeeds(out);
+    watergs::fuzz::WriteCheckpointSeeds(out);
+    watergs::fuzz::WriteNetworkSeeds(out);
+    watergs::fuzz::WriteMessageSeeds(out);
+    watergs::fuzz::WriteProjectIniSeeds(out);
+  } catch (const watergs::Error& e) {
+    std::fprintf(stderr, "watergs_fuzz_seeds: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,7 @@
+// libFuzzer target: COLMAP points3D.txt (see colmap_fuzzer.h).
+#include "fuzz/colmap_fuzzer.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return watergs::fuzz::FuzzColmapFile(watergs::fuzz::ColmapFile::kPoints3D,
+                                       watergs::ModelFormat::kText, data, size);
+}
