@@ -92,6 +92,21 @@ std::unique_ptr<HiddenModel> HiddenModelFromFile(const std::string& path,
                      std::to_string(expected_bits) + " expected");
   if (need_encoder && !has_encoder)
     FailAt(path, "holds no encoder (decoder-only file)");
+  // The networks are allocated before their tensors are matched, and a few
+  // bytes of meta must not ask for gigabytes: the file must hold at least the
+  // convolution weights the architecture implies.
+  const int64_t c = config.channels, bits = config.num_bits;
+  int64_t needed = 9 * c * (3 + (config.decoder_blocks - 1) * c + bits);
+  if (has_encoder)
+    needed += 9 * c * (3 + (config.encoder_blocks - 1) * c + bits + c + 3);
+  int64_t stored_values = 0;
+  for (const TensorRecord& t : file.tensors)
+    stored_values += int64_t(t.values.size());
+  if (stored_values < needed)
+    FailAt(path, "wrong architecture: the file holds " +
+                     std::to_string(stored_values) +
+                     " weights, the architecture needs at least " +
+                     std::to_string(needed));
   auto model = std::make_unique<HiddenModel>(config, has_encoder, 0);
   std::vector<Parameter*> params = model->AllParameters();
   size_t stored = 0;
