@@ -3,8 +3,8 @@
 # any build failure, test failure or sanitizer report.
 #   bash scripts/sanitize.sh address   # ASan + UBSan (GCC), the whole suite, in build-address/
 #   bash scripts/sanitize.sh thread    # TSan (clang + libomp + Archer), the multithreaded
-#                                      # rasterizer, projection, binning, loss and Adam tests,
-#                                      # in build-thread/
+#                                      # rasterizer, projection, binning, loss, Adam, density
+#                                      # and trainer tests, in build-thread/
 # Extra arguments go to ctest (address) or to the gtest binary (thread), e.g.
 #   bash scripts/sanitize.sh address -R Malformed
 # Both build only the CLI and the test executables (no benchmarks). Run with `nice` on a
@@ -52,7 +52,7 @@ case "$kind" in
     # Two or more threads, whatever the machine, so that the parallel paths run.
     export OMP_NUM_THREADS="${OMP_NUM_THREADS:-4}"
     "$dir/tests/watergs_gaussian_test" \
-      --gtest_filter='Rasterizer*:TileBinning*:Projection*:Loss*:Adam*' \
+      --gtest_filter='Rasterizer*:TileBinning*:Projection*:Loss*:Adam*:Trainer*:Density*' \
       "$@"
     ;;
   *) echo "usage: $0 address|thread [ctest or gtest arguments]" >&2; exit 2 ;;
