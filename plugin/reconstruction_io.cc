@@ -512,6 +512,27 @@ ModelFormat DetectModelFormat(const std::string& model_path) {
   FailAt(model_path, "no cameras/images/points3D .bin or .txt files");
 }
 
+namespace {
+
+// Every observed point3D must be in the points3D file: a file cut at a line
+// (or record) boundary otherwise reads as a smaller, valid-looking model.
+void CheckObservedPointsExist(const std::string& points3D_path,
+                              const Reconstruction& reconstruction) {
+  for (const auto& [image_id, image] : reconstruction.Images()) {
+    for (const Point2D& point2D : image.points2D) {
+      if (point2D.point3D_id != kInvalidPoint3DId &&
+          !reconstruction.ExistsPoint3D(point2D.point3D_id)) {
+        FailAt(points3D_path, "lacks point3D " +
+                                  std::to_string(point2D.point3D_id) +
+                                  ", which image " + std::to_string(image_id) +
+                                  " observes (truncated file?)");
+      }
+    }
+  }
+}
+
+}  // namespace
+
 Reconstruction ReadReconstruction(const std::string& path) {
   const std::string model_path = FindModelPath(path);
   return DetectModelFormat(model_path) == ModelFormat::kBinary
@@ -524,6 +545,7 @@ Reconstruction ReadReconstructionBinary(const std::string& model_path) {
   ReadCamerasBinary(PathIn(model_path, "cameras.bin"), &reconstruction);
   ReadImagesBinary(PathIn(model_path, "images.bin"), &reconstruction);
   ReadPoints3DBinary(PathIn(model_path, "points3D.bin"), &reconstruction);
+  CheckObservedPointsExist(PathIn(model_path, "points3D.bin"), reconstruction);
   return reconstruction;
 }
 
@@ -532,6 +554,7 @@ Reconstruction ReadReconstructionText(const std::string& model_path) {
   ReadCamerasText(PathIn(model_path, "cameras.txt"), &reconstruction);
   ReadImagesText(PathIn(model_path, "images.txt"), &reconstruction);
   ReadPoints3DText(PathIn(model_path, "points3D.txt"), &reconstruction);
+  CheckObservedPointsExist(PathIn(model_path, "points3D.txt"), reconstruction);
   return reconstruction;
 }
 

@@ -94,11 +94,12 @@ TEST_F(MalformedInput, BinariesTruncatedAtEveryByte) {
 }
 
 TEST_F(MalformedInput, TextTruncatedAtEveryLine) {
-  // Each camera is used and each image observes points, so dropping any
-  // record leaves a dangling reference; a cut inside an image's two lines
-  // leaves it without its POINTS2D line. The error may name the file that
-  // holds the dangling reference.
-  for (const char* file : {"txt/cameras.txt", "txt/images.txt"}) {
+  // Each camera is used, each image observes points and each point is
+  // observed, so dropping any record leaves a dangling reference; a cut
+  // inside an image's two lines leaves it without its POINTS2D line. The
+  // error may name the file that holds the dangling reference.
+  for (const char* file :
+       {"txt/cameras.txt", "txt/images.txt", "txt/points3D.txt"}) {
     const std::string text = Bytes(file);
     int cuts = 0;
     for (size_t at = text.find('\n'); at + 1 < text.size();
@@ -112,6 +113,29 @@ TEST_F(MalformedInput, TextTruncatedAtEveryLine) {
     EXPECT_GE(cuts, 2) << file;
     Put(file, text);
   }
+}
+
+TEST_F(MalformedInput, PointsFileCutAtARecordNamesTheMissingPoint) {
+  // A points3D file that ends early at a record boundary is still well
+  // formed: the observations in the images file give it away.
+  std::string text = Bytes("txt/points3D.txt");
+  text.resize(text.rfind('\n', text.size() - 2) + 1);
+  Put("txt/points3D.txt", text);
+  ExpectError("txt", "points3D.txt", "observes (truncated file?)");
+  std::string bytes = Bytes("points3D.bin");
+  uint64_t count = 0;
+  std::memcpy(&count, bytes.data(), 8);
+  --count;
+  std::memcpy(bytes.data(), &count, 8);
+  // Drop the last record: walk the records to find where it starts.
+  size_t at = 8;
+  for (uint64_t k = 0; k < count; ++k) {
+    uint64_t track = 0;
+    std::memcpy(&track, bytes.data() + at + 43, 8);
+    at += 43 + 8 + 8 * track;
+  }
+  Put("points3D.bin", bytes.substr(0, at));
+  ExpectError("", "points3D.bin", "observes (truncated file?)");
 }
 
 TEST_F(MalformedInput, BinaryCountsDisagreeWithTheData) {
