@@ -1,9 +1,11 @@
 #include "gaussian/file_util.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -29,6 +31,25 @@ int FsyncPath(const std::string& path, int flags) {
   const int error = ::fsync(fd) == 0 ? 0 : errno;
   ::close(fd);
   return error;
+}
+
+// Removes `<target>.tmp.<pid>.*` files whose writer no longer runs: a
+// process killed inside AtomicWriteFile (SIGKILL, power loss) cannot remove
+// its temporary, and the next successful write of the same target does.
+void RemoveStaleTemporaries(const std::filesystem::path& target,
+                            const std::filesystem::path& dir) {
+  const std::string prefix = target.filename().string() + ".tmp.";
+  std::error_code ec;
+  std::filesystem::directory_iterator it(dir, ec), end;
+  for (; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
+      std::error_code ignored;
+      std::filesystem::remove(it->path(), ignored);
+    }
+  }
 }
 
 }  // namespace
@@ -80,6 +101,7 @@ void AtomicWriteFile(const std::string& path,
     std::filesystem::rename(tmp, target, ec);
     if (ec) FailAt(path, "cannot rename temporary into place: " + ec.message());
     FsyncPath(dir.string(), O_RDONLY | O_DIRECTORY);
+    RemoveStaleTemporaries(target, dir);
   } catch (...) {
     std::filesystem::remove(tmp, ec);
     throw;

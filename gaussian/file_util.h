@@ -15,7 +15,8 @@ std::vector<uint8_t> ReadFileBytes(const std::string& path);
 // Writes `path` atomically: `writer` fills a temporary file in the same
 // folder, which is flushed, fsync'ed and renamed over `path`. If `writer`
 // throws or any write fails, the temporary is removed, `path` is untouched
-// and Error("<path>: ...") is thrown.
+// and Error("<path>: ...") is thrown. A successful write also removes the
+// temporaries of `path` left by writers that no longer run (killed mid-write).
 void AtomicWriteFile(const std::string& path,
                      const std::function<void(std::ostream&)>& writer);
 

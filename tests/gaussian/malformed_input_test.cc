@@ -242,6 +242,25 @@ TEST_F(MalformedInput, ReadOnlyOutputFolder) {
   EXPECT_EQ(Entries(folder), std::vector<std::string>{"out.ply"});
 }
 
+TEST_F(MalformedInput, TemporariesOfDeadWritersAreRemovedOnTheNextWrite) {
+  // What a writer killed mid-write leaves: `<path>.tmp.<pid>.<hex>`. A pid
+  // that no longer runs: a reaped child's.
+  const pid_t child = fork();
+  if (child == 0) _exit(0);
+  int status = 0;
+  waitpid(child, &status, 0);
+  const std::string out = Path("out.ply");
+  const std::string dead = out + ".tmp." + std::to_string(child) + ".abc";
+  const std::string live = out + ".tmp." + std::to_string(::getpid()) + ".def";
+  const std::string other = Path("other.ply.tmp.") + std::to_string(child);
+  for (const std::string& p : {dead, live, other}) Write(p, "partial");
+  AtomicWriteFile(out, std::string("complete"));
+  EXPECT_EQ(Read(out), "complete");
+  EXPECT_FALSE(fs::exists(dead));
+  EXPECT_TRUE(fs::exists(live));   // a running writer's is kept
+  EXPECT_TRUE(fs::exists(other));  // another output's is not touched
+}
+
 TEST_F(MalformedInput, FullDiskKeepsThePreviousOutput) {
   // A disk that fills up mid-write, simulated in a child process by a file
   // size limit of 16 KiB (writes past it fail with EFBIG, SIGXFSZ ignored).

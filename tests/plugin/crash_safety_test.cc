@@ -148,8 +148,9 @@ std::vector<nlohmann::json> ReadLog(const std::string& path) {
 struct Seen {
   // Iteration of the checkpoint (-1 while absent).
   int64_t checkpoint_iteration = -1;
-  // Temporaries a kill left behind (allowed: SIGKILL gives no chance to
-  // remove them; the outputs themselves are never partial).
+  // Temporaries a kill left behind (allowed until the next write of their
+  // output: SIGKILL gives no chance to remove them; the outputs themselves
+  // are never partial).
   int temporaries = 0;
 };
 
@@ -256,12 +257,15 @@ void KillAndResume(const std::vector<std::string>& args,
   // the run already finished, which only ends the kills early.
   EXPECT_GE(killed, 1);
   RunToEnd(fs::exists(checkpoint) ? Concat(args, {"--resume"}) : args);
+  const int left_by_kills = seen.temporaries;
   CheckOutputs(out_dir, checkpoint_every, &seen);
+  // The final run rewrote every output, removing the kills' temporaries.
+  EXPECT_EQ(seen.temporaries, 0);
   std::printf(
       "[ killed %d times (checkpoints at %s, period %.0f ms), resumed; %d "
       "temporaries left by kills ]\n",
       killed, ::testing::PrintToString(targets).c_str(), 1e3 * period,
-      seen.temporaries);
+      left_by_kills);
 }
 
 std::vector<uint8_t> Bytes(const std::string& path) {
