@@ -3,6 +3,8 @@
 // `watergs extract --decoder_path` takes. The trailing checksum is recomputed
 // so that mutations reach the parser. A parsed tensor must hold exactly
 // prod(shape) values.
+#include <algorithm>
+
 #include "fuzz/fuzz_support.h"
 #include "watermark/hidden_model.h"
 #include "watermark/network_file.h"
@@ -21,11 +23,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     return 0;
   }
   for (const TensorRecord& tensor : file.tensors) {
+    // Saturated at 2^64 (a later 0 dim still gives 0): never wraps.
+    const unsigned __int128 kCap = static_cast<unsigned __int128>(1) << 64;
     unsigned __int128 count = 1;
     for (const int d : tensor.shape) {
       if (d < 0) fuzz::Finding("tensor " + tensor.name + " has a negative dim");
-      count *= static_cast<unsigned>(d);
-      if (count > tensor.values.size()) break;
+      count = std::min(count * static_cast<unsigned>(d), kCap);
     }
     if (count != tensor.values.size()) {
       fuzz::Finding("tensor " + tensor.name +

@@ -17,7 +17,7 @@ cmake -S . -B "$dir" -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebI
 mapfile -t all < <(cd fuzz && ls ./*_fuzzer.cc | sed 's|^\./||; s|_fuzzer\.cc$||')
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all[@]}")
-cmake --build "$dir" -j"$jobs" --target watergs_fuzz_seeds "${targets[@]/%/_fuzzer}"
+nice -n 10 cmake --build "$dir" -j"$jobs" --target watergs_fuzz_seeds "${targets[@]/%/_fuzzer}"
 
 # Seeds are regenerated each time; the corpus folder keeps what earlier runs
 # found, so longer campaigns build on shorter ones.
