@@ -71,7 +71,15 @@ template <typename T>
 void ReadVector(std::istream& in, std::vector<T>* v) {
   uint64_t n = 0;
   in.read(reinterpret_cast<char*>(&n), sizeof(n));
-  if (!in || n > (uint64_t(1) << 34)) Fail("density state: corrupt size");
+  // Checked against the bytes left before allocating: a corrupt count must
+  // not reserve gigabytes.
+  const std::streampos here = in.tellg();
+  in.seekg(0, std::ios::end);
+  const std::streamoff left = in.tellg() - here;
+  in.seekg(here);
+  if (!in || n > uint64_t(left) / sizeof(T)) {
+    Fail("density state: corrupt size");
+  }
   v->resize(n);
   in.read(reinterpret_cast<char*>(v->data()), n * sizeof(T));
   if (!in) Fail("density state: truncated");

@@ -350,7 +350,11 @@ void Trainer::Resume(const std::string& checkpoint_path) {
   }
   adam_.set_rejected_total(c.adam_rejected);
   strategy_->Init(model_);
-  strategy_->LoadState(c.density_state);
+  try {
+    strategy_->LoadState(c.density_state);
+  } catch (const Error& e) {
+    FailAt(checkpoint_path, e.what());
+  }
   std::istringstream rng_in(c.rng_state);
   rng_in >> rng_;
   if (!rng_in) FailAt(checkpoint_path, "checkpoint RNG state is corrupt");

@@ -426,8 +426,17 @@ void Embedder::Resume(const std::string& path) {
   }
   const auto extra = nlohmann::json::parse(c.rng_state, nullptr, false);
   if (extra.is_discarded() || !extra.contains("rng") ||
-      !extra.contains("origin")) {
+      !extra["rng"].is_string() || !extra.contains("origin") ||
+      !extra["origin"].is_array()) {
     FailAt(path, "not an embed checkpoint");
+  }
+  std::vector<int64_t> origin;
+  int zero_ber_checks = 0;
+  try {
+    origin = extra["origin"].get<std::vector<int64_t>>();
+    zero_ber_checks = extra.value("zero_ber_checks", 0);
+  } catch (const nlohmann::json::exception&) {
+    FailAt(path, "checkpoint embed state has fields of the wrong type");
   }
   model_ = std::move(c.model);
   adam_.Init(model_);
@@ -440,11 +449,15 @@ void Embedder::Resume(const std::string& path) {
   }
   adam_.set_rejected_total(c.adam_rejected);
   strategy_->Init(model_);
-  strategy_->LoadState(c.density_state);
+  try {
+    strategy_->LoadState(c.density_state);
+  } catch (const Error& e) {
+    FailAt(path, e.what());
+  }
   std::istringstream rng_in(extra["rng"].get<std::string>());
   rng_in >> rng_;
-  origin_ = extra["origin"].get<std::vector<int64_t>>();
-  zero_ber_checks_ = extra.value("zero_ber_checks", 0);
+  origin_ = std::move(origin);
+  zero_ber_checks_ = zero_ber_checks;
   if (!rng_in || origin_.size() != model_.size()) {
     FailAt(path, "checkpoint state is corrupt");
   }

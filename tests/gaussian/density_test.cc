@@ -224,5 +224,20 @@ TEST(Density, SavedStateReproducesSplits) {
   EXPECT_THROW(b.strategy->LoadState("garbage"), Error);
 }
 
+TEST(Density, StateCountBeyondItsBytesIsRefusedBeforeAllocating) {
+  Fixture f(MakeModel(5, 0.05f, 0.5f), DensityOptions{});
+  std::string state = f.strategy->SaveState();
+  // The first vector's element count claims 2^33 floats (32 GiB).
+  const uint64_t huge = uint64_t(1) << 33;
+  state.replace(0, sizeof(huge), reinterpret_cast<const char*>(&huge),
+                sizeof(huge));
+  try {
+    f.strategy->LoadState(state);
+    FAIL() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("corrupt size"), std::string::npos);
+  }
+}
+
 }  // namespace
 }  // namespace watergs

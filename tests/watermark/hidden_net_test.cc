@@ -46,6 +46,23 @@ double Dot(const std::vector<float>& a, const std::vector<float>& b) {
 constexpr float kStep = 1e-4f;
 constexpr double kTolerance = 0.1;
 
+// A unit direction whose derivative is far from zero whatever the seed: the
+// normalised analytic gradient g plus half a random unit vector orthogonal to
+// it. A correct g predicts |g| along it; an error in g along either part
+// shows. (A purely random direction over hundreds of inputs can cancel to a
+// derivative below float finite-difference noise.)
+std::vector<float> WellConditionedDirection(const std::vector<float>& g,
+                                            std::mt19937* rng) {
+  std::vector<float> r = RandomVector(g.size(), rng);
+  const double gg = Dot(g, g), rg = Dot(r, g);
+  for (size_t i = 0; i < r.size(); ++i) r[i] -= float(rg / gg) * g[i];
+  const double g_norm = std::sqrt(gg), r_norm = std::sqrt(Dot(r, r));
+  std::vector<float> d(g.size());
+  for (size_t i = 0; i < d.size(); ++i)
+    d[i] = float(g[i] / g_norm + 0.5 * r[i] / r_norm);
+  return d;
+}
+
 // (f(+h) - f(-h)) / 2h after `perturb(t)` moves the inputs by t * direction.
 double Directional(const std::function<void(float)>& perturb,
                    const std::function<double()>& f, float h) {
@@ -64,11 +81,13 @@ TEST(HiddenDecoderTest, InputGradientMatchesFiniteDifferencesBothModes) {
     Tensor image(2, 3, 12, 11);
     image.data = RandomVector(image.size(), &rng);
     const std::vector<float> w = RandomVector(2 * 8, &rng);
-    const std::vector<float> direction = RandomVector(image.size(), &rng);
     Tensor dlogits(2, 8, 1, 1), dimage;
     dlogits.data = w;
     model.decoder->Forward(image, training);
     model.decoder->Backward(dlogits, &dimage, true, training);
+    ASSERT_GT(Dot(dimage.data, dimage.data), 1e-8) << "no input gradient";
+    const std::vector<float> direction =
+        WellConditionedDirection(dimage.data, &rng);
     auto loss = [&] {
       return Dot(model.decoder->Forward(image, training).data, w);
     };
