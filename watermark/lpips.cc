@@ -55,6 +55,7 @@ class Reader {
     return value;
   }
   bool AtEnd() const { return pos_ == end_; }
+  size_t Remaining() const { return end_ - pos_; }
 
  private:
   const std::string& path_;
@@ -87,6 +88,12 @@ std::map<std::string, NamedTensor> ReadTensors(const std::string& path) {
     if (name_size > 256) FailAt(path, "tensor name too long");
     std::string name(name_size, '\0');
     reader.Read(name.data(), name_size);
+    // Names reach error messages, which must stay one line.
+    for (const char c : name) {
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+        FailAt(path, "tensor name with a control character");
+      }
+    }
     const uint32_t ndim = reader.Get<uint32_t>();
     if (ndim > 4) FailAt(path, name + ": more than 4 dimensions");
     NamedTensor tensor;
@@ -96,9 +103,14 @@ std::map<std::string, NamedTensor> ReadTensors(const std::string& path) {
       if (tensor.shape.back() < 0 || tensor.shape.back() > (1 << 24)) {
         FailAt(path, name + ": bad dimension");
       }
+      // Checked per factor: four dimensions of 2^24 would overflow int64.
       numel *= tensor.shape.back();
+      if (numel > (int64_t(1) << 28)) FailAt(path, name + ": too large");
     }
-    if (numel > (int64_t(1) << 28)) FailAt(path, name + ": too large");
+    // Before allocating: a small file must not reserve a gigabyte.
+    if (size_t(numel) > reader.Remaining() / sizeof(float)) {
+      FailAt(path, name + ": truncated LPIPS weights file");
+    }
     tensor.values.resize(size_t(numel));
     reader.Read(tensor.values.data(), size_t(numel) * sizeof(float));
     tensors[name] = std::move(tensor);

@@ -276,6 +276,39 @@ TEST_F(LpipsTest, RefusesCorruptedTruncatedAndIncompleteFiles) {
   }
 }
 
+// Tensor headers that claim more than the file holds: refused from the
+// header, before any allocation (a 1 GB tensor in a 60-byte file, four
+// dimensions whose product overflows int64), and names that would break the
+// one-line error.
+TEST_F(LpipsTest, RefusesHeadersThatClaimMoreThanTheFileHolds) {
+  struct Case {
+    std::string label;
+    RefTensor tensor;
+    std::string problem;
+  };
+  const std::vector<Case> cases = {
+      {"gigabyte",
+       {"scaling.shift", {1 << 14, 1 << 14}, {1.f, 2.f}},
+       "truncated"},
+      {"overflow",
+       {"scaling.shift", {1 << 24, 1 << 24, 1 << 24, 1 << 24}, {1.f}},
+       "too large"},
+      {"newline", {"scaling\nshift", {1}, {1.f}}, "control character"}};
+  for (const auto& [label, tensor, problem] : cases) {
+    const std::string path = (*dir_ / (label + ".bin")).string();
+    std::ofstream(path, std::ios::binary) << Serialize({tensor});
+    try {
+      Lpips::Load(path);
+      ADD_FAILURE() << label << " loaded";
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      EXPECT_EQ(message.rfind(path, 0), 0u) << message;
+      EXPECT_EQ(message.find('\n'), std::string::npos) << label;
+      EXPECT_NE(message.find(problem), std::string::npos) << message;
+    }
+  }
+}
+
 ImageRGB RenderClamped(const GaussianModel& model, const RenderCamera& cam) {
   ImageRGB image;
   MakeCpuRasterizer()->Forward(model, cam, RenderOptions{}, &image, nullptr);
