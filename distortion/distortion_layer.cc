@@ -155,7 +155,7 @@ DistortionSpec ParseDistortionSpec(const std::string& text) {
       throw std::invalid_argument("name");
     }
   } catch (const std::logic_error&) {
-    Fail("distortion `" + text +
+    Fail("distortion `" + Printable(text) +
          "`: expected identity, gn:SIGMA, dropout:P or crop:P, optionally "
          "followed by @WEIGHT");
   }
@@ -170,7 +170,7 @@ std::vector<DistortionSpec> ParseDistortionList(const std::string& text) {
   while (std::getline(in, item, ',')) {
     if (!item.empty()) specs.push_back(ParseDistortionSpec(item));
   }
-  if (specs.empty()) Fail("distortion list `" + text + "` is empty");
+  if (specs.empty()) Fail("distortion list `" + Printable(text) + "` is empty");
   return specs;
 }
 

@@ -28,7 +28,7 @@ double ParseNumber(const std::string& text, const std::string& what) {
     used = 0;
   }
   if (used == 0 || used != text.size() || !std::isfinite(value)) {
-    Fail("--attack: " + what + ": '" + text + "' is not a number");
+    Fail("--attack: " + what + ": '" + Printable(text) + "' is not a number");
   }
   return value;
 }
@@ -164,20 +164,23 @@ SimilarityTransform SimilarityTransform::After(
 SimilarityTransform ParseSimilarity(const std::string& text) {
   const std::vector<double> v = ParseNumbers(text, "similarity");
   if (v.size() != 5 && v.size() != 8) {
-    Fail("--attack: similarity:" + text +
+    Fail("--attack: similarity:" + Printable(text) +
          ": expected DEG,TX,TY,TZ,S or DEG,TX,TY,TZ,S,AX,AY,AZ");
   }
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
   if (v.size() == 8) axis = Eigen::Vector3d(v[5], v[6], v[7]);
-  if (!(axis.norm() > 0)) {
-    Fail("--attack: similarity:" + text + ": the rotation axis is zero");
+  // Stable norm: an axis like (3, 4, 2e171) must not overflow to inf.
+  if (!(axis.stableNorm() > 0)) {
+    Fail("--attack: similarity:" + Printable(text) +
+         ": the rotation axis is zero");
   }
   if (!(v[4] > 0)) {
-    Fail("--attack: similarity:" + text + ": the scale must be > 0");
+    Fail("--attack: similarity:" + Printable(text) + ": the scale must be > 0");
   }
   SimilarityTransform transform;
-  transform.rotation = Eigen::AngleAxisd(v[0] * kPi / 180.0, axis.normalized())
-                           .toRotationMatrix();
+  transform.rotation =
+      Eigen::AngleAxisd(v[0] * kPi / 180.0, axis.stableNormalized())
+          .toRotationMatrix();
   transform.translation = Eigen::Vector3d(v[1], v[2], v[3]);
   transform.scale = v[4];
   return transform;
@@ -268,7 +271,8 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
   SplitNameArgs(text, &name, &args);
   ModelAttackSpec spec;
   const auto no_args = [&] {
-    if (!args.empty()) Fail("--attack: '" + text + "' takes no argument");
+    if (!args.empty())
+      Fail("--attack: '" + Printable(text) + "' takes no argument");
   };
   if (name == "identity" || name == "gn" || name == "dropout" ||
       name == "crop") {
@@ -286,7 +290,8 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
     if (!args.empty()) {
       const double bits = ParseNumber(args, "quant");
       if (bits != std::round(bits) || bits < 1 || bits > 16) {
-        Fail("--attack: '" + text + "': bits must be an integer in [1, 16]");
+        Fail("--attack: '" + Printable(text) +
+             "': bits must be an integer in [1, 16]");
       }
       spec.bits = int(bits);
     }
@@ -300,10 +305,11 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
     spec.kind = ModelAttackKind::kPrune;
     spec.opacity_threshold = ParseNumber(args, "prune");
     if (spec.opacity_threshold < 0 || spec.opacity_threshold > 1) {
-      Fail("--attack: '" + text + "': the opacity threshold must be in [0, 1]");
+      Fail("--attack: '" + Printable(text) +
+           "': the opacity threshold must be in [0, 1]");
     }
   } else {
-    Fail("--attack: unknown attack '" + text +
+    Fail("--attack: unknown attack '" + Printable(text) +
          "' (identity, gn:SIGMA, dropout:P, crop:P, sh0, fp16, quant:BITS, "
          "shuffle, similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ], prune:T)");
   }

@@ -2,7 +2,10 @@
 // made with the project's own writers from the committed demo scene and from
 // small synthetic models, so that no binary seed needs to be committed.
 //   watergs_fuzz_seeds <out_dir>   ->  <out_dir>/<target>/<seed>
+#include <zlib.h>
+
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <random>
 #include <sstream>
@@ -179,6 +182,38 @@ void WriteProjectIniSeeds(const std::string& out) {
   WriteTextSeed(SeedPath(out, "project_ini", "minimal.ini"), "output_path=o\n");
 }
 
+void WriteSimilaritySeeds(const std::string& out) {
+  WriteTextSeed(SeedPath(out, "similarity", "z_axis"), "30,1,0,0,2");
+  WriteTextSeed(SeedPath(out, "similarity", "axis"),
+                "-12.5,0.1,-2e-3,4,0.75,1,1,0");
+}
+
+// A small weights file in the LPIPS format (magic, tensor records, CRC-32):
+// the input scaling only, so the reader parses it and Load refuses it as
+// incomplete, the deepest path a mutated file can reach.
+void WriteLpipsSeeds(const std::string& out) {
+  std::string blob = "WGLPIPS1";
+  const auto put = [&blob](const void* p, size_t n) {
+    blob.append(static_cast<const char*>(p), n);
+  };
+  const uint32_t count = 2;
+  put(&count, 4);
+  for (const char* name : {"scaling.shift", "scaling.scale"}) {
+    const uint32_t name_size = uint32_t(std::strlen(name)), ndim = 1;
+    const int64_t dim = 3;
+    const float values[3] = {0.5f, 0.25f, 0.125f};
+    put(&name_size, 4);
+    put(name, name_size);
+    put(&ndim, 4);
+    put(&dim, 8);
+    put(values, sizeof(values));
+  }
+  const uint32_t crc = uint32_t(crc32(
+      0L, reinterpret_cast<const Bytef*>(blob.data()), uInt(blob.size())));
+  put(&crc, 4);
+  WriteTextSeed(SeedPath(out, "lpips_weights", "scaling_only.bin"), blob);
+}
+
 }  // namespace
 }  // namespace watergs::fuzz
 
@@ -195,6 +230,8 @@ int main(int argc, char** argv) {
     watergs::fuzz::WriteNetworkSeeds(out);
     watergs::fuzz::WriteMessageSeeds(out);
     watergs::fuzz::WriteProjectIniSeeds(out);
+    watergs::fuzz::WriteSimilaritySeeds(out);
+    watergs::fuzz::WriteLpipsSeeds(out);
   } catch (const watergs::Error& e) {
     std::fprintf(stderr, "watergs_fuzz_seeds: %s\n", e.what());
     return 1;

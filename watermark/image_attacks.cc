@@ -22,7 +22,8 @@ double ParseValue(const std::string& text, const std::string& value) {
     used = 0;
   }
   if (used == 0 || used != value.size() || !std::isfinite(parsed)) {
-    Fail("--image_attack: '" + text + "': '" + value + "' is not a number");
+    Fail("--image_attack: '" + Printable(text) + "': '" + Printable(value) +
+         "' is not a number");
   }
   return parsed;
 }
@@ -87,7 +88,7 @@ ImageRGB Crop(double fraction, const ImageRGB& image) {
 ImageAttackSpec ParseImageAttack(const std::string& text) {
   const size_t colon = text.find(':');
   if (colon == std::string::npos) {
-    Fail("--image_attack: '" + text +
+    Fail("--image_attack: '" + Printable(text) +
          "' needs a strength (jpeg:Q, resize:F, crop:F)");
   }
   const std::string name = text.substr(0, colon);
@@ -97,20 +98,23 @@ ImageAttackSpec ParseImageAttack(const std::string& text) {
     spec.kind = ImageAttackKind::kJpeg;
     if (spec.value != std::round(spec.value) || spec.value < 1 ||
         spec.value > 100) {
-      Fail("--image_attack: '" + text + "': quality must be an integer 1-100");
+      Fail("--image_attack: '" + Printable(text) +
+           "': quality must be an integer 1-100");
     }
   } else if (name == "resize") {
     spec.kind = ImageAttackKind::kResize;
     if (!(spec.value > 0 && spec.value <= 4)) {
-      Fail("--image_attack: '" + text + "': factor must be in (0, 4]");
+      Fail("--image_attack: '" + Printable(text) +
+           "': factor must be in (0, 4]");
     }
   } else if (name == "crop") {
     spec.kind = ImageAttackKind::kCrop;
     if (!(spec.value > 0 && spec.value <= 1)) {
-      Fail("--image_attack: '" + text + "': fraction must be in (0, 1]");
+      Fail("--image_attack: '" + Printable(text) +
+           "': fraction must be in (0, 1]");
     }
   } else {
-    Fail("--image_attack: unknown attack '" + text +
+    Fail("--image_attack: unknown attack '" + Printable(text) +
          "' (jpeg:Q, resize:F, crop:F)");
   }
   return spec;

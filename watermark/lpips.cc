@@ -1,6 +1,8 @@
 // LPIPS-VGG on the project's NN layers (see lpips.h).
 #include "watermark/lpips.h"
 
+#include <zlib.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -21,21 +23,15 @@ constexpr int kConvIndices[13] = {0,  2,  5,  7,  10, 12, 14,
 constexpr int kBlockConvs[5] = {2, 2, 3, 3, 3};
 constexpr int kTapChannels[5] = {64, 128, 256, 512, 512};
 
+// CRC-32 (zlib's, the checksum the converter script writes) of `size` bytes.
 uint32_t Crc32(const uint8_t* data, size_t size) {
-  static const auto table = [] {
-    std::array<uint32_t, 256> t{};
-    for (uint32_t i = 0; i < 256; ++i) {
-      uint32_t c = i;
-      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-      t[i] = c;
-    }
-    return t;
-  }();
-  uint32_t crc = 0xFFFFFFFFu;
-  for (size_t i = 0; i < size; ++i) {
-    crc = table[(crc ^ data[i]) & 0xFF] ^ (crc >> 8);
+  uLong crc = crc32(0L, Z_NULL, 0);
+  // zlib takes uInt lengths: feed the weights (~60 MB) in chunks.
+  constexpr size_t kChunk = size_t(1) << 30;
+  for (size_t done = 0; done < size; done += kChunk) {
+    crc = crc32(crc, data + done, uInt(std::min(kChunk, size - done)));
   }
-  return crc ^ 0xFFFFFFFFu;
+  return uint32_t(crc);
 }
 
 // Sequential little-endian reads that fail with the file's name.
@@ -45,6 +41,8 @@ class Reader {
       : path_(path), bytes_(bytes), end_(end) {}
   void Read(void* out, size_t size) {
     if (size > end_ - pos_) FailAt(path_, "truncated LPIPS weights file");
+    // An empty tensor's buffer may be null, which memcpy must not get.
+    if (size == 0) return;
     std::memcpy(out, bytes_.data() + pos_, size);
     pos_ += size;
   }

@@ -7,22 +7,6 @@
 namespace watergs {
 namespace {
 
-// `text` with control characters written as \xNN, so that an error quoting
-// what the owner typed stays on one line.
-std::string Printable(const std::string& text) {
-  static const char* kHex = "0123456789abcdef";
-  std::string out;
-  for (const char c : text) {
-    const auto byte = static_cast<unsigned char>(c);
-    if (byte < 0x20 || byte == 0x7f) {
-      out += std::string("\\x") + kHex[byte >> 4] + kHex[byte & 15];
-    } else {
-      out += c;
-    }
-  }
-  return out;
-}
-
 bool StartsWith(const std::string& s, const std::string& prefix) {
   return s.compare(0, prefix.size(), prefix) == 0;
 }

@@ -6,6 +6,7 @@
 #include "gaussian/file_util.h"
 #include "tests/common/fuzz_regressions.h"
 #include "watermark/hidden_model.h"
+#include "watermark/lpips.h"
 #include "watermark/message.h"
 #include "watermark/network_file.h"
 
@@ -35,6 +36,15 @@ TEST(FuzzRegression, MessageInputsAreHandled) {
     const std::string text(bytes.begin() + 1, bytes.end());
     testing::ExpectFuzzRegressionHandled(input, "message",
                                          [&] { ParseMessage(text, num_bits); });
+  }
+}
+
+// LPIPS-VGG weights files (the CRC already matches, as the fuzzer made it).
+TEST(FuzzRegression, LpipsWeightsInputsAreHandled) {
+  for (const std::string& input :
+       testing::FuzzRegressionInputs("lpips_weights")) {
+    testing::ExpectFuzzRegressionHandled(input, input,
+                                         [&] { Lpips::Load(input); });
   }
 }
 
