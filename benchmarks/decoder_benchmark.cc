@@ -14,26 +14,15 @@
 #include <string>
 #include <vector>
 
+#include "benchmarks/benchmark_util.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using watergs::bench::MedianSeconds;
 
-template <typename F>
-double MedianSeconds(int repeats, F&& f) {
-  f();  // warm-up: allocations, caches
-  std::vector<double> times;
-  for (int r = 0; r < repeats; ++r) {
-    const auto start = Clock::now();
-    f();
-    times.push_back(
-        std::chrono::duration<double>(Clock::now() - start).count());
-  }
-  std::sort(times.begin(), times.end());
-  return times[times.size() / 2];
-}
+using Clock = std::chrono::steady_clock;
 
 }  // namespace
 

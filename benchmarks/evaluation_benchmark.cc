@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "benchmarks/benchmark_util.h"
 #include "distortion/file_attacks.h"
 #include "watermark/image_attacks.h"
 #include "watermark/image_quality.h"
@@ -20,21 +21,9 @@
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using watergs::bench::MedianSeconds;
 
-template <typename F>
-double MedianSeconds(int repeats, F&& f) {
-  f();  // warm-up: allocations, caches
-  std::vector<double> times;
-  for (int r = 0; r < repeats; ++r) {
-    const auto start = Clock::now();
-    f();
-    times.push_back(
-        std::chrono::duration<double>(Clock::now() - start).count());
-  }
-  std::sort(times.begin(), times.end());
-  return times[times.size() / 2];
-}
+using Clock = std::chrono::steady_clock;
 
 watergs::ImageRGB RandomImage(int w, int h, uint32_t seed) {
   std::mt19937 rng(seed);

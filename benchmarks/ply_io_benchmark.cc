@@ -10,28 +10,12 @@
 #include <string>
 #include <vector>
 
+#include "benchmarks/benchmark_util.h"
 #include "gaussian/ply_io.h"
 
 namespace {
 
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
-
-template <typename F>
-double MedianSeconds(int repeats, F&& f) {
-  std::vector<double> times;
-  for (int r = 0; r < repeats; ++r) {
-    const auto start = std::chrono::steady_clock::now();
-    f();
-    times.push_back(
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
-            .count());
-  }
-  return Median(times);
-}
+using watergs::bench::MedianSeconds;
 
 }  // namespace
 

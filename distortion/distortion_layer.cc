@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "gaussian/error.h"
+#include "gaussian/text_util.h"
 
 namespace watergs {
 namespace {
@@ -124,12 +125,10 @@ DistortionSpec ParseDistortionSpec(const std::string& text) {
   const size_t at = body.find('@');
   try {
     if (at != std::string::npos) {
-      size_t used = 0;
-      spec.weight = std::stod(body.substr(at + 1), &used);
-      if (used != body.size() - at - 1 || !(spec.weight > 0) ||
-          !std::isfinite(spec.weight)) {
-        throw std::invalid_argument("weight");
-      }
+      const std::optional<double> weight =
+          ParseFiniteDouble(body.substr(at + 1));
+      if (!weight || !(*weight > 0)) throw std::invalid_argument("weight");
+      spec.weight = *weight;
       body = body.substr(0, at);
     }
     const size_t colon = body.find(':');
@@ -139,12 +138,10 @@ DistortionSpec ParseDistortionSpec(const std::string& text) {
       return spec;
     }
     if (colon == std::string::npos) throw std::invalid_argument("strength");
-    size_t used = 0;
-    const std::string value = body.substr(colon + 1);
-    spec.strength = std::stod(value, &used);
-    if (used != value.size() || !std::isfinite(spec.strength)) {
-      throw std::invalid_argument("strength");
-    }
+    const std::optional<double> strength =
+        ParseFiniteDouble(body.substr(colon + 1));
+    if (!strength) throw std::invalid_argument("strength");
+    spec.strength = *strength;
     if (name == "gn") {
       spec.kind = DistortionKind::kGaussianNoise;
     } else if (name == "dropout") {

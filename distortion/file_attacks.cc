@@ -12,6 +12,7 @@
 
 #include "gaussian/error.h"
 #include "gaussian/sh.h"
+#include "gaussian/text_util.h"
 
 namespace watergs {
 namespace {
@@ -20,17 +21,11 @@ constexpr double kPi = 3.14159265358979323846;
 
 // Parses a whole string as a finite double; `what` names it in the error.
 double ParseNumber(const std::string& text, const std::string& what) {
-  size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size() || !std::isfinite(value)) {
+  const std::optional<double> value = ParseFiniteDouble(text);
+  if (!value) {
     Fail("--attack: " + what + ": '" + Printable(text) + "' is not a number");
   }
-  return value;
+  return *value;
 }
 
 std::vector<double> ParseNumbers(const std::string& text,

@@ -8,24 +8,19 @@
 #include <sstream>
 
 #include "gaussian/error.h"
+#include "gaussian/text_util.h"
 #include "watermark/image_noise.h"
 
 namespace watergs {
 namespace {
 
 double ParseValue(const std::string& text, const std::string& value) {
-  size_t used = 0;
-  double parsed = 0;
-  try {
-    parsed = std::stod(value, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != value.size() || !std::isfinite(parsed)) {
+  const std::optional<double> parsed = ParseFiniteDouble(value);
+  if (!parsed) {
     Fail("--image_attack: '" + Printable(text) + "': '" + Printable(value) +
          "' is not a number");
   }
-  return parsed;
+  return *parsed;
 }
 
 ImageRGB Jpeg(int quality, const ImageRGB& image) {
