@@ -31,6 +31,7 @@
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "synthetic_model.h"
+#include "tests/plugin/rendered_workspace.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {
@@ -39,34 +40,12 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-// WS/sparse/0 (8 pinhole views, 64x48) and WS/images rendered from
-// Gaussians at the SfM points; returns the workspace path.
+// WS/sparse/0 (8 pinhole views, 64x48) and rendered WS/images.
 std::string MakeWorkspace(const testing::TempDir& dir) {
   testing::SyntheticModelOptions options;
   options.num_images = 8;
   options.num_points = 200;
-  const Reconstruction model = testing::MakeSyntheticReconstruction(options);
-  const std::string ws = dir / "ws";
-  WriteReconstruction(model, ws + "/sparse/0", ModelFormat::kText);
-  CreateDirectories(ws + "/images");
-  for (const auto& [id, image] : model.Images()) {
-    WritePng(ws + "/images/" + image.name, ImageRGB(64, 48));
-  }
-  WorkspaceOptions wo;
-  wo.workspace_path = ws;
-  const Workspace workspace = Workspace::Open(wo);
-  std::vector<float> xyz, rgb;
-  workspace.PointCloud(&xyz, &rgb);
-  GaussianModel truth = InitGaussiansFromPoints(xyz, rgb, 1);
-  for (float& logit : truth.opacity_logits) logit = 2.f;
-  auto rasterizer = MakeCpuRasterizer();
-  for (size_t v = 0; v < workspace.NumViews(); ++v) {
-    ImageRGB image;
-    rasterizer->Forward(truth, workspace.ViewCamera(v), RenderOptions{}, &image,
-                        nullptr);
-    WritePng(ws + "/images/" + workspace.ViewName(v), image);
-  }
-  return ws;
+  return testing::MakeRenderedWorkspace(dir / "ws", options);
 }
 
 // Starts `watergs args...` with stdout and stderr going to `output_path`;

@@ -14,6 +14,7 @@
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "synthetic_model.h"
+#include "tests/plugin/rendered_workspace.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {
@@ -23,36 +24,14 @@ using testing::RunCommand;
 using testing::TempDir;
 using testing::WatergsBin;
 
-// WS/sparse/0 (6 pinhole views, 48x36), WS/images rendered from `truth`
-// (Gaussians at the SfM points, returned).
+// WS/sparse/0 (6 pinhole views, 48x36) and WS/images rendered from `truth`.
 std::string MakeWorkspace(const TempDir& dir, GaussianModel* truth) {
   testing::SyntheticModelOptions options;
   options.num_images = 6;
   options.num_points = 150;
   options.width = 48;
   options.height = 36;
-  const Reconstruction model = testing::MakeSyntheticReconstruction(options);
-  const std::string ws = dir / "ws";
-  WriteReconstruction(model, ws + "/sparse/0", ModelFormat::kText);
-  CreateDirectories(ws + "/images");
-  for (const auto& [id, image] : model.Images()) {
-    WritePng(ws + "/images/" + image.name, ImageRGB(48, 36));
-  }
-  WorkspaceOptions wo;
-  wo.workspace_path = ws;
-  const Workspace workspace = Workspace::Open(wo);
-  std::vector<float> xyz, rgb;
-  workspace.PointCloud(&xyz, &rgb);
-  *truth = InitGaussiansFromPoints(xyz, rgb, 1);
-  for (float& logit : truth->opacity_logits) logit = 2.f;
-  auto rasterizer = MakeCpuRasterizer();
-  for (size_t v = 0; v < workspace.NumViews(); ++v) {
-    ImageRGB image;
-    rasterizer->Forward(*truth, workspace.ViewCamera(v), RenderOptions{},
-                        &image, nullptr);
-    WritePng(ws + "/images/" + workspace.ViewName(v), image);
-  }
-  return ws;
+  return testing::MakeRenderedWorkspace(dir / "ws", options, truth);
 }
 
 // A one-line error naming `what`, non-zero exit.

@@ -1,0 +1,53 @@
+// Test helper shared by the CLI tests: a COLMAP workspace whose images are
+// renders of Gaussians placed at its SfM points, so that training and
+// embedding on it converge quickly.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "gaussian/file_util.h"
+#include "gaussian/gaussian_model.h"
+#include "gaussian/image.h"
+#include "gaussian/point_init.h"
+#include "gaussian/rasterizer.h"
+#include "plugin/reconstruction_io.h"
+#include "plugin/training_views.h"
+#include "plugin/workspace.h"
+#include "tests/plugin/synthetic_model.h"
+
+namespace watergs::testing {
+
+// Writes ws/sparse/0 (text) of `options` and ws/images rendered from opaque
+// Gaussians at the SfM points; returns ws. `truth` (if given) gets them.
+inline std::string MakeRenderedWorkspace(const std::string& ws,
+                                         const SyntheticModelOptions& options,
+                                         GaussianModel* truth = nullptr) {
+  const Reconstruction model = MakeSyntheticReconstruction(options);
+  WriteReconstruction(model, ws + "/sparse/0", ModelFormat::kText);
+  CreateDirectories(ws + "/images");
+  // Blank placeholders first: the Workspace checks image sizes on open, and
+  // the renders go through the same Workspace code the CLI uses.
+  for (const auto& [id, image] : model.Images()) {
+    WritePng(ws + "/images/" + image.name,
+             ImageRGB(options.width, options.height));
+  }
+  WorkspaceOptions wo;
+  wo.workspace_path = ws;
+  const Workspace workspace = Workspace::Open(wo);
+  std::vector<float> xyz, rgb;
+  workspace.PointCloud(&xyz, &rgb);
+  GaussianModel gaussians = InitGaussiansFromPoints(xyz, rgb, 1);
+  for (float& logit : gaussians.opacity_logits) logit = 2.f;
+  auto rasterizer = MakeCpuRasterizer();
+  for (size_t v = 0; v < workspace.NumViews(); ++v) {
+    ImageRGB image;
+    rasterizer->Forward(gaussians, workspace.ViewCamera(v), RenderOptions{},
+                        &image, nullptr);
+    WritePng(ws + "/images/" + workspace.ViewName(v), image);
+  }
+  if (truth) *truth = std::move(gaussians);
+  return ws;
+}
+
+}  // namespace watergs::testing
