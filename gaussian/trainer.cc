@@ -184,8 +184,12 @@ IterationStats Trainer::Step() {
     ComputeScreenRadii(model_, camera, grads_.visible, &radii_);
     radii = &radii_;
   }
+  // The last iteration's model is the one written and scored, so, as Inria
+  // saves before densifying, it is not densified, pruned or reset.
   const DensityEvent event =
-      strategy_->PostBackward(it, grads_, radii, &model_, &adam_);
+      it < options_.iterations
+          ? strategy_->PostBackward(it, grads_, radii, &model_, &adam_)
+          : DensityEvent{};
   if (model_.size() == 0) {
     FlushLog();
     Fail("training stopped at iteration " + std::to_string(it) +

@@ -139,6 +139,8 @@ class Trainer {
   Rasterizer& rasterizer() { return *rasterizer_; }
   int64_t iteration() const { return iteration_; }
   int active_sh_degree() const { return active_sh_degree_; }
+  // JSON lines logged so far (also written to log_path).
+  const std::vector<std::string>& log_lines() const { return log_lines_; }
   double elapsed_seconds() const { return elapsed_seconds_; }
   // Training-state bytes per Gaussian: parameters, Adam moments, gradients
   // and density statistics (render contexts excluded).

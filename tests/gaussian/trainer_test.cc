@@ -123,6 +123,37 @@ TEST(Trainer, LossDecreases) {
   EXPECT_EQ(trainer.model().CountNonFinite(), 0u);
 }
 
+// Inria saves the model before the last iteration's density control: a run
+// that ends on a densification and opacity-reset iteration must write the
+// model its held-out test scored, not the freshly reset one.
+TEST(Trainer, LastIterationIsNeitherDensifiedNorReset) {
+  Scene s = MakeScene();
+  TrainerOptions o = SmallRun(36);
+  o.density.densification_interval = 6;
+  o.density.opacity_reset_interval = 18;
+  o.density.densify_until_iter = 40;  // 36 is a densify and reset iteration
+  o.test_views = {0, 3};
+  o.test_iterations = {36};
+  Trainer trainer(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  trainer.Run();
+  const EvalResult final_views =
+      EvaluateViews(trainer.rasterizer(), trainer.model(), s.views, {0, 3},
+                    {0, 0, 0}, trainer.active_sh_degree());
+  double logged_psnr = -1;
+  for (const std::string& line : trainer.log_lines()) {
+    const nlohmann::json j = nlohmann::json::parse(line);
+    if (j["iteration"] == 36 && j.contains("test_psnr"))
+      logged_psnr = j["test_psnr"];
+  }
+  ASSERT_GT(logged_psnr, 0);
+  EXPECT_NEAR(final_views.psnr, logged_psnr, 1e-6);
+  float max_opacity_logit = -100;
+  for (float a : trainer.model().opacity_logits)
+    max_opacity_logit = std::max(max_opacity_logit, a);
+  // A reset would cap every opacity at 0.01 (logit about -4.6).
+  EXPECT_GT(max_opacity_logit, -4.0f);
+}
+
 TEST(Trainer, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   Scene s = MakeScene();
   const std::string dir = TempDir("resume");
