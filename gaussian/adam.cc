@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "gaussian/error.h"
+#include "gaussian/sh.h"
 
 namespace watergs {
 namespace {
@@ -18,6 +19,93 @@ constexpr ParamGroup kGroups[kNumParamGroups] = {
 // Gradients beyond this are clamped so that g * g stays finite in float.
 constexpr float kMaxGradMagnitude = 1e18f;
 constexpr float kFloatMax = std::numeric_limits<float>::max();
+
+// Gaussians per block of an Adam step.
+constexpr int64_t kBlockGaussians = 256;
+
+bool IsShGroup(ParamGroup group) {
+  return group == ParamGroup::kFDc || group == ParamGroup::kFRest;
+}
+
+// Values [begin, end) of one group; branch-free so that it vectorises.
+// Returns the number of rejected values (non-finite gradient or result).
+template <typename Constants>
+size_t AdamUpdate(const Constants& k, const float* gr, float* m, float* v,
+                  float* p, size_t begin, size_t end) {
+  const float step_size = k.step_size, bias2_sqrt = k.bias2_sqrt, w1 = k.w1,
+              beta2 = k.beta2, w2 = k.w2, eps = k.eps;
+  size_t bad = 0;
+#pragma omp simd reduction(+ : bad)
+  for (size_t j = begin; j < end; ++j) {
+    const float raw = gr[j];
+    const bool finite_grad = std::fabs(raw) <= kFloatMax;  // NaN: false
+    const float g = finite_grad ? std::min(std::max(raw, -kMaxGradMagnitude),
+                                           kMaxGradMagnitude)
+                                : 0.f;
+    const float new_m = m[j] + w1 * (g - m[j]);
+    const float new_v = v[j] * beta2 + w2 * g * g;
+    const float denom = std::sqrt(new_v) / bias2_sqrt + eps;
+    const float new_p = p[j] - step_size * (new_m / denom);
+    const bool ok = std::fabs(new_p) <= kFloatMax && new_v <= kFloatMax;
+    bad += (finite_grad ? 0 : 1) + (ok ? 0 : 1);
+    m[j] = ok ? new_m : m[j];
+    v[j] = ok ? new_v : v[j];
+    p[j] = ok ? new_p : p[j];
+  }
+  return bad;
+}
+
+// Gradients of Gaussians [i0, i1) of f_dc or f_rest from the factored
+// (compact_sh) form, into `out`; returns out->data().
+const float* ExpandShGradients(const GaussianGradients& grads, ParamGroup group,
+                               int64_t i0, int64_t i1, int stride,
+                               std::vector<float>* out) {
+  const int rest_stride = group == ParamGroup::kFRest ? stride : 45;
+  out->resize(static_cast<size_t>(i1 - i0) * stride);
+  float dc[3], rest[45];
+  for (int64_t i = i0; i < i1; ++i) {
+    ShCoefficientGradients(grads.sh_active_degree, &grads.sh_view_dir[3 * i],
+                           &grads.sh_color_grad[3 * i], rest_stride, dc, rest);
+    float* dst = out->data() + static_cast<size_t>(i - i0) * stride;
+    std::copy_n(group == ParamGroup::kFDc ? dc : rest, stride, dst);
+  }
+  return out->data();
+}
+
+// bfloat16 storage of moments: the top 16 bits of a float.
+float* DecodeBf16(const uint16_t* in, size_t count, std::vector<float>* out) {
+  out->resize(count);
+  for (size_t j = 0; j < count; ++j) {
+    const uint32_t bits = static_cast<uint32_t>(in[j]) << 16;
+    std::memcpy(&(*out)[j], &bits, sizeof(float));
+  }
+  return out->data();
+}
+
+// A non-zero xorshift32 state from a step-and-group seed and a block index.
+uint32_t RoundingState(uint64_t seed, uint64_t block) {
+  uint64_t z = seed * 0x9e3779b97f4a7c15ull + block + 0x632be59bd9b4e019ull;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  const uint32_t state = static_cast<uint32_t>(z ^ (z >> 31));
+  return state == 0 ? 1u : state;
+}
+
+// Float -> bfloat16 with stochastic rounding of the magnitude: the expected
+// stored value is the float, so Adam's small per-step EMA increments (0.1%
+// of v, under bfloat16's 0.4% spacing) accumulate instead of rounding away.
+void EncodeBf16Stochastic(const float* in, size_t count, uint32_t* state,
+                          uint16_t* out) {
+  uint32_t x = *state;
+  for (size_t j = 0; j < count; ++j) {
+    x ^= x << 13, x ^= x >> 17, x ^= x << 5;
+    uint32_t bits;
+    std::memcpy(&bits, &in[j], sizeof(float));
+    // Moments are finite and at most ~1e36, so the carry never reaches Inf.
+    out[j] = static_cast<uint16_t>((bits + (x & 0xffffu)) >> 16);
+  }
+  *state = x;
+}
 
 template <typename V>
 void FilterRows(V& v, const std::vector<bool>& keep, size_t stride) {
@@ -180,6 +268,9 @@ void Adam::Init(const GaussianModel& model) {
     if (options_.compact_moments) {
       s.exp_avg_q.assign(n, 0);
       s.exp_avg_sq_shared.assign(num_gaussians_, 0.f);
+    } else if (UsesHalfMoments(group)) {
+      s.exp_avg_h.assign(n, 0);
+      s.exp_avg_sq_h.assign(n, 0);
     } else {
       s.exp_avg.assign(n, 0.f);
       s.exp_avg_sq.assign(n, 0.f);
@@ -200,6 +291,11 @@ void Adam::SetIteration(int64_t iteration) {
   lr_[Index(ParamGroup::kOpacity)] = o.opacity_lr;
   lr_[Index(ParamGroup::kScaling)] = o.scaling_lr;
   lr_[Index(ParamGroup::kRotation)] = o.rotation_lr;
+}
+
+bool Adam::UsesHalfMoments(ParamGroup group) const {
+  return options_.half_moments && !options_.compact_moments &&
+         group != ParamGroup::kXyz;
 }
 
 double Adam::LearningRate(ParamGroup group) const { return lr_[Index(group)]; }
@@ -235,16 +331,23 @@ size_t Adam::Step(const GaussianGradients& grads, GaussianModel* model) {
     const int g = Index(group);
     if (!enabled_[g]) continue;
     std::vector<float>& params = GroupParams(*model, group);
-    const std::vector<float>& grad = GroupGrads(grads, group);
-    if (grad.size() != params.size() ||
+    const bool factored = IsShGroup(group) && grads.compact_sh;
+    const std::vector<float>& grad =
+        factored ? grads.sh_color_grad : GroupGrads(grads, group);
+    const size_t expected = factored ? 3 * num_gaussians_ : params.size();
+    if (grad.size() != expected ||
+        (factored && grads.sh_view_dir.size() != expected) ||
         params.size() != num_gaussians_ * strides_[g]) {
       Fail(std::string("Adam: gradient of ") + GroupName(group) + " has " +
            std::to_string(grad.size()) + " values, expected " +
-           std::to_string(params.size()));
+           std::to_string(expected));
+    }
+    if (factored && options_.compact_moments) {
+      Fail("Adam: compact moments need dense SH gradients (compact_sh off)");
     }
     rejected += options_.compact_moments
                     ? StepGroupCompact(group, grad, strides_[g], &params)
-                    : StepGroup(group, grad, strides_[g], &params);
+                    : StepGroup(group, grads, strides_[g], &params);
   }
   rejected_total_ += static_cast<int64_t>(rejected);
   return rejected;
@@ -263,60 +366,53 @@ Adam::StepConstants Adam::NextStepConstants(ParamGroup group,
           static_cast<float>(options_.eps)};
 }
 
-size_t Adam::StepGroup(ParamGroup group, const std::vector<float>& grad,
+size_t Adam::StepGroup(ParamGroup group, const GaussianGradients& grads,
                        int stride, std::vector<float>* params) {
   AdamGroupState& s = groups_[Index(group)];
   // torch.optim.Adam (single-tensor path), in float like torch.
-  // Plain copies, not a structured binding, since the lambda below captures
-  // them (clang before 16 cannot capture structured bindings).
   const StepConstants k = NextStepConstants(group, &s);
-  const float step_size = k.step_size, bias2_sqrt = k.bias2_sqrt, w1 = k.w1,
-              beta2 = k.beta2, w2 = k.w2, eps = k.eps;
   const std::vector<uint8_t>& mask = masks_[Index(group)];
   const bool use_mask = !mask.empty();
-  float* p = params->data();
-  float* m = s.exp_avg.data();
-  float* v = s.exp_avg_sq.data();
-  const float* gr = grad.data();
-  // Values [begin, end): branch-free so that it vectorises; returns the
-  // number of rejected values.
-  auto update = [=](size_t begin, size_t end) {
-    size_t bad = 0;
-#pragma omp simd reduction(+ : bad)
-    for (size_t j = begin; j < end; ++j) {
-      const float raw = gr[j];
-      const bool finite_grad = std::fabs(raw) <= kFloatMax;  // NaN: false
-      const float g = finite_grad ? std::min(std::max(raw, -kMaxGradMagnitude),
-                                             kMaxGradMagnitude)
-                                  : 0.f;
-      const float new_m = m[j] + w1 * (g - m[j]);
-      const float new_v = v[j] * beta2 + w2 * g * g;
-      const float denom = std::sqrt(new_v) / bias2_sqrt + eps;
-      const float new_p = p[j] - step_size * (new_m / denom);
-      const bool ok = std::fabs(new_p) <= kFloatMax && new_v <= kFloatMax;
-      bad += (finite_grad ? 0 : 1) + (ok ? 0 : 1);
-      m[j] = ok ? new_m : m[j];
-      v[j] = ok ? new_v : v[j];
-      p[j] = ok ? new_p : p[j];
-    }
-    return bad;
-  };
+  const bool half = UsesHalfMoments(group);
+  const bool expand_sh = IsShGroup(group) && grads.compact_sh;
+  const float* dense = expand_sh ? nullptr : GroupGrads(grads, group).data();
+  const uint64_t rounding_seed = (static_cast<uint64_t>(s.step) << 8) ^
+                                 static_cast<uint64_t>(Index(group));
   const int64_t n = static_cast<int64_t>(num_gaussians_);
+  const int64_t blocks = (n + kBlockGaussians - 1) / kBlockGaussians;
   size_t rejected = 0;
-  if (use_mask) {
+  // Fixed blocks (not per-thread ranges) so that stochastic rounding, seeded
+  // per block, gives the same result for any thread count.
 #pragma omp parallel for schedule(static) reduction(+ : rejected) \
     if (n * stride > 32768)
-    for (int64_t i = 0; i < n; ++i) {
-      if (mask[i]) rejected += update(i * stride, (i + 1) * stride);
+  for (int64_t b = 0; b < blocks; ++b) {
+    thread_local std::vector<float> g_buf, m_buf, v_buf;
+    const int64_t i0 = b * kBlockGaussians;
+    const int64_t i1 = std::min(n, i0 + kBlockGaussians);
+    const size_t v0 = static_cast<size_t>(i0) * stride;
+    const size_t count = static_cast<size_t>(i1 - i0) * stride;
+    const float* g =
+        expand_sh ? ExpandShGradients(grads, group, i0, i1, stride, &g_buf)
+                  : dense + v0;
+    float* m = s.exp_avg.data() + v0;
+    float* v = s.exp_avg_sq.data() + v0;
+    if (half) {
+      m = DecodeBf16(s.exp_avg_h.data() + v0, count, &m_buf);
+      v = DecodeBf16(s.exp_avg_sq_h.data() + v0, count, &v_buf);
     }
-  } else {
-    constexpr int64_t kBlock = 4096;
-    const int64_t total = n * stride;
-    const int64_t blocks = (total + kBlock - 1) / kBlock;
-#pragma omp parallel for schedule(static) reduction(+ : rejected) \
-    if (total > 32768)
-    for (int64_t b = 0; b < blocks; ++b) {
-      rejected += update(b * kBlock, std::min(total, (b + 1) * kBlock));
+    float* p = params->data() + v0;
+    if (use_mask) {
+      for (int64_t i = i0; i < i1; ++i) {
+        const size_t at = static_cast<size_t>(i - i0) * stride;
+        if (mask[i]) rejected += AdamUpdate(k, g, m, v, p, at, at + stride);
+      }
+    } else {
+      rejected += AdamUpdate(k, g, m, v, p, 0, count);
+    }
+    if (half) {
+      uint32_t state = RoundingState(rounding_seed, static_cast<uint64_t>(b));
+      EncodeBf16Stochastic(m, count, &state, s.exp_avg_h.data() + v0);
+      EncodeBf16Stochastic(v, count, &state, s.exp_avg_sq_h.data() + v0);
     }
   }
   return rejected;
@@ -392,6 +488,8 @@ void Adam::Filter(const std::vector<bool>& keep) {
     FilterRows(groups_[g].exp_avg_sq, keep, strides_[g]);
     FilterRows(groups_[g].exp_avg_q, keep, strides_[g]);
     FilterRows(groups_[g].exp_avg_sq_shared, keep, 1);
+    FilterRows(groups_[g].exp_avg_h, keep, strides_[g]);
+    FilterRows(groups_[g].exp_avg_sq_h, keep, strides_[g]);
     if (!masks_[g].empty()) FilterRows(masks_[g], keep, 1);
   }
   num_gaussians_ =
@@ -405,6 +503,9 @@ void Adam::Append(size_t count) {
     if (options_.compact_moments) {
       s.exp_avg_q.resize(num_gaussians_ * strides_[g], 0);
       s.exp_avg_sq_shared.resize(num_gaussians_, 0.f);
+    } else if (UsesHalfMoments(static_cast<ParamGroup>(g))) {
+      s.exp_avg_h.resize(num_gaussians_ * strides_[g], 0);
+      s.exp_avg_sq_h.resize(num_gaussians_ * strides_[g], 0);
     } else {
       s.exp_avg.resize(num_gaussians_ * strides_[g], 0.f);
       s.exp_avg_sq.resize(num_gaussians_ * strides_[g], 0.f);
@@ -419,14 +520,19 @@ void Adam::ResetMoments(ParamGroup group) {
   std::fill(s.exp_avg_sq.begin(), s.exp_avg_sq.end(), 0.f);
   std::fill(s.exp_avg_q.begin(), s.exp_avg_q.end(), 0);
   std::fill(s.exp_avg_sq_shared.begin(), s.exp_avg_sq_shared.end(), 0.f);
+  std::fill(s.exp_avg_h.begin(), s.exp_avg_h.end(), 0);
+  std::fill(s.exp_avg_sq_h.begin(), s.exp_avg_sq_h.end(), 0);
 }
 
 size_t Adam::BytesPerGaussian() const {
   size_t bytes = 0;
   for (int g = 0; g < kNumParamGroups; ++g) {
+    const size_t moment_bytes = UsesHalfMoments(static_cast<ParamGroup>(g))
+                                    ? sizeof(uint16_t)
+                                    : sizeof(float);
     bytes += options_.compact_moments
                  ? strides_[g] * sizeof(uint8_t) + sizeof(float)
-                 : 2 * sizeof(float) * strides_[g];
+                 : 2 * moment_bytes * strides_[g];
     if (!masks_[g].empty()) bytes += 1;
   }
   return bytes;

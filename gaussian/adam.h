@@ -49,6 +49,10 @@ struct AdamOptions {
   // value as an 8-bit float relative to its square root. Not Inria's exact
   // optimiser; off by default.
   bool compact_moments = false;
+  // Moments of every group but the positions stored as bfloat16 with
+  // stochastic rounding (2 instead of 4 bytes per value; positions, whose
+  // updates are the smallest relative to their values, keep float).
+  bool half_moments = false;
 };
 
 // Moments of one group and the update count used for bias correction
@@ -60,6 +64,8 @@ struct AdamGroupState {
   std::vector<float> exp_avg_sq;
   std::vector<uint8_t> exp_avg_q;
   std::vector<float> exp_avg_sq_shared;
+  // Half moments: exp_avg and exp_avg_sq as bfloat16 bits.
+  std::vector<uint16_t> exp_avg_h, exp_avg_sq_h;
   int64_t step = 0;
 };
 
@@ -131,7 +137,9 @@ class Adam {
   // Advances the group's step count and returns its update scalars.
   StepConstants NextStepConstants(ParamGroup group,
                                   AdamGroupState* state) const;
-  size_t StepGroup(ParamGroup group, const std::vector<float>& grad, int stride,
+  // Whether `group` keeps bfloat16 moments (AdamOptions::half_moments).
+  bool UsesHalfMoments(ParamGroup group) const;
+  size_t StepGroup(ParamGroup group, const GaussianGradients& grads, int stride,
                    std::vector<float>* params);
   size_t StepGroupCompact(ParamGroup group, const std::vector<float>& grad,
                           int stride, std::vector<float>* params);

@@ -145,6 +145,8 @@ void WriteCheckpoint(const std::string& path, const TrainingCheckpoint& c) {
     w.Vector(g.exp_avg_sq);
     w.Vector(g.exp_avg_q);
     w.Vector(g.exp_avg_sq_shared);
+    w.Vector(g.exp_avg_h);
+    w.Vector(g.exp_avg_sq_h);
     w.Pod<int64_t>(g.step);
   }
   w.Pod<int64_t>(c.adam_rejected);
@@ -173,7 +175,7 @@ TrainingCheckpoint ReadCheckpoint(const std::string& path) {
   if (Fnv1a64(bytes.data(), body) != stored) {
     FailAt(path, "checkpoint checksum mismatch (file is corrupt)");
   }
-  if (version != kCheckpointVersion) {
+  if (version != kCheckpointVersion && version != 1) {
     FailAt(path, "checkpoint version " + std::to_string(version) +
                      " is not supported (this build reads version " +
                      std::to_string(kCheckpointVersion) + ")");
@@ -195,6 +197,10 @@ TrainingCheckpoint ReadCheckpoint(const std::string& path) {
     r.Vector(&g.exp_avg_sq);
     r.Vector(&g.exp_avg_q);
     r.Vector(&g.exp_avg_sq_shared);
+    if (version >= 2) {  // version 1 had no bfloat16 moments
+      r.Vector(&g.exp_avg_h);
+      r.Vector(&g.exp_avg_sq_h);
+    }
     g.step = r.Pod<int64_t>();
   }
   c.adam_rejected = r.Pod<int64_t>();

@@ -15,7 +15,8 @@
 namespace watergs {
 
 // Format version written by WriteCheckpoint; older/newer ones are refused.
-constexpr uint32_t kCheckpointVersion = 1;
+// Version 2 added bfloat16 Adam moments; version 1 files are still read.
+constexpr uint32_t kCheckpointVersion = 2;
 
 struct TrainingCheckpoint {
   // Last completed iteration (1-based; 0 = nothing trained yet).

@@ -234,8 +234,14 @@ void SizeGradients(const GaussianModel& model, GaussianGradients* grads) {
   const size_t n = model.size();
   grads->means.resize(3 * n), grads->log_scales.resize(3 * n);
   grads->quats.resize(4 * n), grads->opacity_logits.resize(n);
-  grads->sh_dc.resize(3 * n);
-  grads->sh_rest.resize(n * static_cast<size_t>(model.sh_rest_stride()));
+  if (grads->compact_sh) {
+    grads->sh_dc.clear(), grads->sh_rest.clear();
+    grads->sh_color_grad.resize(3 * n), grads->sh_view_dir.resize(3 * n);
+  } else {
+    grads->sh_dc.resize(3 * n);
+    grads->sh_rest.resize(n * static_cast<size_t>(model.sh_rest_stride()));
+    grads->sh_color_grad.clear(), grads->sh_view_dir.clear();
+  }
   grads->mean2d_grad_norm.resize(n), grads->mean2d_grad_norm_ndc.resize(n);
 }
 
@@ -245,9 +251,19 @@ void GaussianBackward(const GaussianModel& model, const CpuRenderContext& ctx,
                       size_t i, const SplatGrad* g, uint8_t color_clamped,
                       GaussianGradients* grads) {
   const int stride = model.sh_rest_stride();
-  float* grad_rest = grads->sh_rest.data() + i * stride;
+  // Compact SH gradients: the coefficient products go to scratch and only
+  // their factors (colour gradient, view direction) are kept.
+  float scratch_dc[3], scratch_rest[45];
+  const bool compact = grads->compact_sh;
+  float* grad_dc = compact ? scratch_dc : &grads->sh_dc[3 * i];
+  float* grad_rest =
+      compact ? scratch_rest : grads->sh_rest.data() + i * stride;
   std::fill(grad_rest, grad_rest + stride, 0.f);
-  std::fill_n(&grads->sh_dc[3 * i], 3, 0.f);
+  std::fill_n(grad_dc, 3, 0.f);
+  if (compact) {
+    std::fill_n(&grads->sh_color_grad[3 * i], 3, 0.f);
+    std::fill_n(&grads->sh_view_dir[3 * i], 3, 0.f);
+  }
   double grad_mean[3] = {0, 0, 0}, grad_ls[3] = {0, 0, 0};
   double grad_q[4] = {0, 0, 0, 0}, grad_logit = 0;
   double grad_mean2d[2] = {0, 0};
@@ -261,8 +277,14 @@ void GaussianBackward(const GaussianModel& model, const CpuRenderContext& ctx,
     const double dir[3] = {mean[0] - cam.center[0], mean[1] - cam.center[1],
                            mean[2] - cam.center[2]};
     ShColorBackward(ctx.active_sh_degree, &model.sh_dc[3 * i],
-                    model.sh_rest.data() + i * stride, dir, grad_rgb,
-                    &grads->sh_dc[3 * i], grad_rest, grad_mean);
+                    model.sh_rest.data() + i * stride, dir, grad_rgb, grad_dc,
+                    grad_rest, grad_mean);
+    if (compact) {
+      for (int d = 0; d < 3; ++d) {
+        grads->sh_color_grad[3 * i + d] = static_cast<float>(grad_rgb[d]);
+        grads->sh_view_dir[3 * i + d] = static_cast<float>(dir[d]);
+      }
+    }
     const double s = Sigmoid(model.opacity_logits[i]);
     grad_logit = g->opacity * s * (1 - s);
     grad_mean2d[0] = g->mean_x, grad_mean2d[1] = g->mean_y;
@@ -305,6 +327,7 @@ void CpuRasterizer::Backward(const GaussianModel& model,
                     &splat_grads);
   SizeGradients(model, grads);
   grads->visible = ctx.visible;
+  grads->sh_active_degree = ctx.active_sh_degree;
   // Visit Gaussians in id order (not depth order) so the model and gradient
   // arrays, ~0.5 KB per Gaussian at SH degree 3, stream through the cache.
   std::vector<int32_t> splat_of(model.size(), -1);

@@ -8,8 +8,14 @@ void GaussianGradients::Reset(size_t n, int rest_stride) {
   zero(log_scales, n * 3);
   zero(quats, n * 4);
   zero(opacity_logits, n);
-  zero(sh_dc, n * 3);
-  zero(sh_rest, n * static_cast<size_t>(rest_stride));
+  if (compact_sh) {
+    sh_dc.clear(), sh_rest.clear();
+    zero(sh_color_grad, n * 3);
+    zero(sh_view_dir, n * 3);
+  } else {
+    zero(sh_dc, n * 3);
+    zero(sh_rest, n * static_cast<size_t>(rest_stride));
+  }
   zero(mean2d_grad_norm, n);
   zero(mean2d_grad_norm_ndc, n);
   visible.assign(n, 0);

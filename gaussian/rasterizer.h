@@ -32,7 +32,18 @@ struct RenderOptions {
 // Gradients of a scalar loss with respect to every model array, same shapes
 // as GaussianModel, plus what density control needs.
 struct GaussianGradients {
+  // Left empty when compact_sh (see below).
   std::vector<float> means, log_scales, quats, opacity_logits, sh_dc, sh_rest;
+  // Set by the caller before Backward: store the SH gradients in factored
+  // form. One view's SH gradient of a Gaussian is rank 1 (the SH basis of
+  // its view direction times dL/dcolour), so 6 floats replace 48 at degree 3
+  // and ShCoefficientGradients expands them exactly when needed.
+  bool compact_sh = false;
+  // When compact_sh: per Gaussian dL/d(colour) with clamped channels zeroed
+  // (3), and its unnormalised view direction mean - camera centre (3).
+  std::vector<float> sh_color_grad, sh_view_dir;
+  // When compact_sh: the SH degree the view was rendered with.
+  int sh_active_degree = 0;
   // Per Gaussian: norm |(gx, gy)| of dL/d(mean2d), mean2d in pixels, for
   // this view (0 if not visible). A threshold t in Inria's units is about
   // t / (W/2) here for square-ish pixels; prefer mean2d_grad_norm_ndc.

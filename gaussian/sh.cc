@@ -2,6 +2,7 @@
 // templates in sh.h by tests/gaussian/sh_test.cc.
 #include "gaussian/sh.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace watergs {
@@ -75,6 +76,19 @@ void ShColorBackward(int degree, const float* dc, const float* rest,
   grad_dir[0] += (grad_unit[0] - x * dot) / norm;
   grad_dir[1] += (grad_unit[1] - y * dot) / norm;
   grad_dir[2] += (grad_unit[2] - z * dot) / norm;
+}
+
+void ShCoefficientGradients(int degree, const float* dir, const float* grad_rgb,
+                            int rest_stride, float* grad_dc, float* grad_rest) {
+  const double d[3] = {dir[0], dir[1], dir[2]};
+  const double g[3] = {grad_rgb[0], grad_rgb[1], grad_rgb[2]};
+  std::fill_n(grad_dc, 3, 0.f);
+  std::fill_n(grad_rest, rest_stride, 0.f);
+  // Only the coefficient products are wanted; rest values do not enter them.
+  static const float kNoRest[45] = {};
+  double unused_dir[3] = {0, 0, 0};
+  ShColorBackward(degree, grad_dc, kNoRest, d, g, grad_dc, grad_rest,
+                  unused_dir);
 }
 
 }  // namespace watergs

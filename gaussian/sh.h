@@ -80,4 +80,11 @@ void ShColorBackward(int degree, const float* dc, const float* rest,
                      const double* dir, const double* grad_rgb, float* grad_dc,
                      float* grad_rest, double* grad_dir);
 
+// Expands the factored SH gradient of one Gaussian (GaussianGradients with
+// compact_sh): grad_rgb (3) and view direction dir (3, unnormalised) ->
+// grad_dc (3) and grad_rest (rest_stride values, zero above `degree`),
+// overwritten. The same products ShColorBackward accumulates.
+void ShCoefficientGradients(int degree, const float* dir, const float* grad_rgb,
+                            int rest_stride, float* grad_dc, float* grad_rest);
+
 }  // namespace watergs

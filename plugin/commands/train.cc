@@ -63,10 +63,20 @@ struct TrainArgs {
   int64_t densify_from_iter = 500;
   int64_t densify_until_iter = 15000;
   bool compact_optimizer = false;
+  std::string moment_precision = "float32";
 };
 
 void Validate(const TrainArgs& a) {
   if (a.iterations < 1) Fail("--iterations must be at least 1");
+  if (a.moment_precision != "float32" && a.moment_precision != "bfloat16") {
+    Fail("--moment_precision must be float32 or bfloat16, not '" +
+         Printable(a.moment_precision) + "'");
+  }
+  if (a.compact_optimizer && a.moment_precision != "float32") {
+    Fail(
+        "--compact_optimizer and --moment_precision bfloat16 exclude each "
+        "other");
+  }
   if (a.sh_degree < 0 || a.sh_degree > 3) Fail("--sh_degree must be 0-3");
   const int d = a.workspace.downscale;
   if (d != 1 && d != 2 && d != 4 && d != 8) {
@@ -95,6 +105,7 @@ void WriteReport(const std::string& path, const TrainArgs& a,
   j["sh_degree"] = a.sh_degree;
   j["eval"] = a.eval;
   j["compact_optimizer"] = a.compact_optimizer;
+  j["moment_precision"] = a.moment_precision;
   j["state_bytes_per_gaussian"] = trainer.StateBytesPerGaussian();
   j["metrics_split"] = split;
   j["num_metric_views"] = eval.num_views;
@@ -149,6 +160,10 @@ int RunTrain(int argc, char** argv) {
   parser.AddFlag("compact_optimizer", &a.compact_optimizer,
                  "Compact Adam moments (83 instead of 472 bytes per "
                  "Gaussian; not Inria's exact optimiser)");
+  parser.Add("moment_precision", &a.moment_precision,
+             "Adam moments of all groups but positions: float32 (Inria) or "
+             "bfloat16 with stochastic rounding (224 bytes per Gaussian "
+             "less)");
   if (!parser.Parse(argc, argv)) return 0;
   Validate(a);
   if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
@@ -187,6 +202,7 @@ int RunTrain(int argc, char** argv) {
   options.seed = static_cast<uint64_t>(a.seed);
   options.adam.position_lr_max_steps = a.iterations;
   options.adam.compact_moments = a.compact_optimizer;
+  options.adam.half_moments = a.moment_precision == "bfloat16";
   options.density.densify_from_iter = a.densify_from_iter;
   options.density.densify_until_iter = a.densify_until_iter;
   options.density.white_background =

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "gaussian/error.h"
+#include "gaussian/sh.h"
 
 namespace watergs {
 namespace {
@@ -326,6 +327,156 @@ TEST(CompactAdam, MomentsFollowFilterAppendAndMasks) {
   for (int k = 0; k < 9; ++k) {
     EXPECT_EQ(q2[9 + k], q[18 + k]);
     EXPECT_EQ(q2[27 + k], 0);
+  }
+}
+
+}  // namespace
+}  // namespace watergs
+
+namespace watergs {
+namespace {
+
+// bfloat16 bits -> float, independent of the optimiser's own decoder.
+float FromBf16(uint16_t bits) {
+  const uint32_t wide = static_cast<uint32_t>(bits) << 16;
+  float x;
+  std::memcpy(&x, &wide, sizeof(x));
+  return x;
+}
+
+TEST(HalfMomentAdam, SecondMomentTracksItsEmaThroughStochasticRounding) {
+  // A constant gradient g: v_t = g^2 (1 - 0.999^t). Each step adds 0.1% of v,
+  // under bfloat16's 0.4-0.8% spacing: round-to-nearest would freeze v near
+  // its early value, stochastic rounding follows the curve on average.
+  GaussianModel model = RandomModel(64, 0, 21);
+  AdamOptions options;
+  options.half_moments = true;
+  Adam adam(options, 1.0);
+  adam.Init(model);
+  GaussianGradients grads;
+  grads.Reset(model.size(), model.sh_rest_stride());
+  std::fill(grads.opacity_logits.begin(), grads.opacity_logits.end(), 0.3f);
+  const int steps = 3000;
+  for (int t = 1; t <= steps; ++t) adam.Step(grads, &model);
+  const double expected = 0.09 * (1 - std::pow(0.999, steps));
+  const auto& v = adam.state(ParamGroup::kOpacity).exp_avg_sq_h;
+  ASSERT_EQ(v.size(), 64u);
+  double mean = 0;
+  for (uint16_t bits : v) mean += FromBf16(bits) / v.size();
+  EXPECT_NEAR(mean, expected, 0.01 * expected);
+  // Positions keep float moments.
+  EXPECT_TRUE(adam.state(ParamGroup::kXyz).exp_avg_h.empty());
+  EXPECT_EQ(adam.state(ParamGroup::kXyz).exp_avg_sq.size(), 3u * 64);
+}
+
+TEST(HalfMomentAdam, ConvergesLikeFloatAdamOnAQuadratic) {
+  auto run = [](bool half) {
+    GaussianModel model = RandomModel(40, 3, 23);
+    const GaussianModel target = RandomModel(40, 3, 24);
+    AdamOptions options;
+    options.half_moments = half;
+    options.position_lr_init = options.position_lr_final = 0.01;
+    options.feature_lr = options.feature_rest_lr = options.opacity_lr = 0.01;
+    options.scaling_lr = options.rotation_lr = 0.01;
+    Adam adam(options, 1.0);
+    adam.Init(model);
+    GaussianGradients grads;
+    double loss = 0;
+    for (int t = 1; t <= 1500; ++t) {
+      adam.SetIteration(t);
+      grads.Reset(model.size(), model.sh_rest_stride());
+      loss = 0;
+      for (ParamGroup g : {ParamGroup::kXyz, ParamGroup::kFDc,
+                           ParamGroup::kFRest, ParamGroup::kOpacity,
+                           ParamGroup::kScaling, ParamGroup::kRotation}) {
+        auto& p = GroupParams(model, g);
+        const auto& c = GroupParams(target, g);
+        auto& d = const_cast<std::vector<float>&>(GroupGrads(grads, g));
+        for (size_t j = 0; j < p.size(); ++j) {
+          const double a = 1 + j % 5;
+          loss += a * (p[j] - c[j]) * (p[j] - c[j]);
+          d[j] = float(2 * a * (p[j] - c[j]));
+        }
+      }
+      adam.Step(grads, &model);
+    }
+    return loss;
+  };
+  const double full = run(false), half = run(true);
+  EXPECT_LT(full, 1e-3);
+  EXPECT_LT(half, 3 * full + 1e-4);
+}
+
+TEST(HalfMomentAdam, MomentsFollowFilterAppendAndResumeBitIdentically) {
+  GaussianModel model = RandomModel(5, 1, 25);
+  AdamOptions options;
+  options.half_moments = true;
+  Adam adam(options, 1.0);
+  adam.Init(model);
+  adam.Step(RandomGrads(model, 26), &model);
+  const auto m = adam.state(ParamGroup::kFRest).exp_avg_h;
+  ASSERT_EQ(m.size(), 5u * 9);
+  adam.Filter({false, true, true, false, true});
+  adam.Append(1);
+  const auto& m2 = adam.state(ParamGroup::kFRest).exp_avg_h;
+  ASSERT_EQ(m2.size(), 4u * 9);
+  for (int k = 0; k < 9; ++k) {
+    EXPECT_EQ(m2[k], m[9 + k]);
+    EXPECT_EQ(m2[18 + k], m[36 + k]);
+    EXPECT_EQ(m2[27 + k], 0);
+  }
+  // A copy of the state continues exactly as the original (the rounding
+  // stream depends on the step and block, not on hidden generator state).
+  model.Resize(4);
+  Adam copy = adam;
+  GaussianModel model_copy = model;
+  const GaussianGradients grads = RandomGrads(model, 27);
+  adam.Step(grads, &model);
+  copy.Step(grads, &model_copy);
+  EXPECT_EQ(model.sh_rest, model_copy.sh_rest);
+  EXPECT_EQ(adam.state(ParamGroup::kFRest).exp_avg_sq_h,
+            copy.state(ParamGroup::kFRest).exp_avg_sq_h);
+}
+
+TEST(Adam, FactoredShGradientsGiveTheDenseUpdate) {
+  // The same step from dense SH gradients and from their factors.
+  GaussianModel model = RandomModel(30, 3, 28);
+  std::mt19937 rng(29);
+  std::normal_distribution<float> normal(0.f, 1e-2f);
+  GaussianGradients factored = RandomGrads(model, 30);
+  factored.compact_sh = true;
+  factored.sh_active_degree = 2;
+  factored.sh_color_grad.resize(3 * model.size());
+  factored.sh_view_dir.resize(3 * model.size());
+  for (float& x : factored.sh_color_grad) x = normal(rng);
+  for (float& x : factored.sh_view_dir) x = 100 * normal(rng);
+  factored.sh_view_dir[0] = factored.sh_view_dir[1] = factored.sh_view_dir[2] =
+      0.f;  // degenerate direction
+  GaussianGradients dense = factored;
+  dense.compact_sh = false;
+  dense.sh_dc.resize(3 * model.size());
+  dense.sh_rest.resize(model.size() * model.sh_rest_stride());
+  for (size_t i = 0; i < model.size(); ++i) {
+    ShCoefficientGradients(2, &factored.sh_view_dir[3 * i],
+                           &factored.sh_color_grad[3 * i],
+                           model.sh_rest_stride(), &dense.sh_dc[3 * i],
+                           &dense.sh_rest[i * model.sh_rest_stride()]);
+  }
+  // Degree 2 leaves the degree-3 coefficients without gradient.
+  EXPECT_EQ(dense.sh_rest[model.sh_rest_stride() - 1], 0.f);
+  EXPECT_NE(dense.sh_rest[model.sh_rest_stride() + 3 * 3], 0.f);
+  for (bool half : {false, true}) {
+    AdamOptions options;
+    options.half_moments = half;
+    Adam a(options, 1.0), b(options, 1.0);
+    a.Init(model);
+    b.Init(model);
+    GaussianModel from_dense = model, from_factors = model;
+    a.Step(dense, &from_dense);
+    b.Step(factored, &from_factors);
+    EXPECT_EQ(from_dense.sh_dc, from_factors.sh_dc);
+    EXPECT_EQ(from_dense.sh_rest, from_factors.sh_rest);
+    EXPECT_EQ(from_dense.means, from_factors.means);
   }
 }
 

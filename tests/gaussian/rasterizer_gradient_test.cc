@@ -14,6 +14,7 @@
 
 #include "gaussian/cpu_rasterizer.h"
 #include "gaussian/reference_rasterizer.h"
+#include "gaussian/sh.h"
 #include "tests/gaussian/rasterizer_test_scenes.h"
 
 namespace watergs {
@@ -233,6 +234,55 @@ TEST(RasterizerGradient, SameResultForAnyThreadCount) {
   EXPECT_EQ(grads1.sh_dc, grads3.sh_dc);
   EXPECT_EQ(grads1.sh_rest, grads3.sh_rest);
   EXPECT_EQ(grads1.mean2d_grad_norm, grads3.mean2d_grad_norm);
+}
+
+// Factored SH gradients (GaussianGradients::compact_sh) expand to the dense
+// ones, for every active degree; the other groups are unchanged.
+TEST(RasterizerGradient, FactoredShGradientsExpandToTheDenseOnes) {
+  const RenderCamera cam = RandomCamera(80, 60, 31);
+  SceneSpec spec;
+  spec.count = 120;
+  const GaussianModel model = RandomScene(cam, spec, 32);
+  const int stride = model.sh_rest_stride();
+  for (int degree = 0; degree <= 3; ++degree) {
+    auto rasterizer = MakeCpuRasterizer();
+    RenderOptions options;
+    options.active_sh_degree = degree;
+    ImageRGB image;
+    std::unique_ptr<RenderContext> context;
+    rasterizer->Forward(model, cam, options, &image, &context);
+    ImageRGB grad(image.width, image.height);
+    for (size_t k = 0; k < grad.data.size(); ++k) {
+      grad.data[k] = std::cos(0.11f * k);
+    }
+    GaussianGradients dense, factored;
+    factored.compact_sh = true;
+    rasterizer->Backward(model, *context, grad, &dense);
+    rasterizer->Backward(model, *context, grad, &factored);
+    EXPECT_TRUE(factored.sh_rest.empty());
+    EXPECT_EQ(factored.sh_active_degree, degree);
+    EXPECT_EQ(dense.means, factored.means);
+    EXPECT_EQ(dense.quats, factored.quats);
+    EXPECT_EQ(dense.mean2d_grad_norm_ndc, factored.mean2d_grad_norm_ndc);
+    size_t nonzero = 0;
+    for (size_t i = 0; i < model.size(); ++i) {
+      float dc[3], rest[45];
+      ShCoefficientGradients(factored.sh_active_degree,
+                             &factored.sh_view_dir[3 * i],
+                             &factored.sh_color_grad[3 * i], stride, dc, rest);
+      for (int c = 0; c < 3; ++c) {
+        const float want = dense.sh_dc[3 * i + c];
+        EXPECT_NEAR(dc[c], want, 1e-6f * std::fabs(want) + 1e-12f) << i;
+        nonzero += want != 0.f;
+      }
+      for (int k = 0; k < stride; ++k) {
+        const float want = dense.sh_rest[i * stride + k];
+        EXPECT_NEAR(rest[k], want, 1e-5f * std::fabs(want) + 1e-10f)
+            << i << " " << k;
+      }
+    }
+    EXPECT_GT(nonzero, 30u);
+  }
 }
 
 }  // namespace

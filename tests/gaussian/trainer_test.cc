@@ -202,6 +202,65 @@ TEST(Trainer, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   EXPECT_EQ(expected, 41);
 }
 
+TEST(Trainer, HalfMomentRunResumesBitIdentically) {
+  Scene s = MakeScene();
+  const std::string dir = TempDir("resume_half");
+  TrainerOptions o = SmallRun(30);
+  o.adam.half_moments = true;
+  Trainer full(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  full.Run();
+  o.checkpoint_path = dir + "/run.ckpt";
+  o.checkpoint_every = 10;
+  Trainer crashed(o, s.views, s.train, s.init, 3.3,
+                  std::make_unique<NanAfter>(15));
+  EXPECT_THROW(crashed.Run(), Error);
+  Trainer resumed(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  resumed.Resume(o.checkpoint_path);
+  resumed.Run();
+  EXPECT_EQ(full.model().sh_rest, resumed.model().sh_rest);
+  EXPECT_EQ(full.model().means, resumed.model().means);
+  EXPECT_EQ(full.adam().state(ParamGroup::kFRest).exp_avg_sq_h,
+            resumed.adam().state(ParamGroup::kFRest).exp_avg_sq_h);
+  EXPECT_FALSE(full.adam().state(ParamGroup::kFRest).exp_avg_sq_h.empty());
+  // A float-moment run refuses the half-moment checkpoint.
+  o.adam.half_moments = false;
+  Trainer other(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  EXPECT_THROW(other.Resume(o.checkpoint_path), Error);
+}
+
+// The budget: at most 600 bytes of training state per Gaussian at
+// SH degree 3 with bfloat16 moments and factored SH gradients.
+TEST(Trainer, HalfMomentStateFitsSixHundredBytesAtShDegreeThree) {
+  Scene s = MakeScene();
+  GaussianModel init = s.init;
+  GaussianModel degree3;
+  degree3.sh_degree = 3;
+  degree3.Resize(init.size());
+  degree3.means = init.means;
+  degree3.log_scales = init.log_scales;
+  degree3.quats = init.quats;
+  degree3.opacity_logits = init.opacity_logits;
+  degree3.sh_dc = init.sh_dc;
+  for (bool half : {false, true}) {
+    TrainerOptions o = SmallRun(1);
+    o.adam.half_moments = half;
+    Trainer trainer(o, s.views, s.train, degree3, 3.3, MakeCpuRasterizer());
+    const size_t params = 59 * 4;  // 3 + 3 + 4 + 1 + 3 + 45 floats
+    // Moments: positions in float, the other 56 values per Gaussian in
+    // bfloat16 or float, two moments each.
+    const size_t moments = 2 * (3 * 4 + 56 * (half ? 2 : 4));
+    // Gradients: 11 floats of geometry and opacity, 6 SH factors, two
+    // densification norms and a visibility byte.
+    const size_t grads = (11 + 6 + 2) * 4 + 1;
+    EXPECT_GE(trainer.StateBytesPerGaussian(), params + moments + grads);
+    EXPECT_LE(trainer.StateBytesPerGaussian(),
+              params + moments + grads + 16);  // density-control statistics
+    if (half) {
+      EXPECT_LE(trainer.StateBytesPerGaussian(), 600u);
+    }
+  }
+}
+
 TEST(Trainer, ResumeRefusesAnotherRunsCheckpoint) {
   Scene s = MakeScene();
   const std::string dir = TempDir("refuse");
@@ -239,9 +298,11 @@ TEST(Trainer, StateBytesPerGaussianCountsEveryBuffer) {
   Scene s = MakeScene();
   TrainerOptions o = SmallRun(1);
   Trainer trainer(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
-  // SH degree 1: 3 + 3 + 4 + 1 + 3 + 9 = 23 floats per parameter copy.
+  // SH degree 1: 3 + 3 + 4 + 1 + 3 + 9 = 23 floats per parameter copy
+  // (parameters and two moments); the gradient holds the 11 geometry and
+  // opacity floats and 6 factors of the SH gradient.
   const size_t params = 23 * 4;
-  EXPECT_GE(trainer.StateBytesPerGaussian(), 4 * params);
+  EXPECT_GE(trainer.StateBytesPerGaussian(), 3 * params + (11 + 6) * 4);
 }
 
 }  // namespace
