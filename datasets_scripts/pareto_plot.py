@@ -8,7 +8,8 @@ the same folder and renamed, so an interrupted run never leaves half a file.
 
 Subcommands:
   train-csv RUN_DIR... --out CSV     rows from each RUN_DIR/train_log.jsonl + sweep_meta.json;
-                                     front per downscale (PSNR is against that resolution)
+                                     front per downscale (PSNR is against that resolution),
+                                     over all rows (pareto) and over run ends (pareto_final)
   embed-csv POINT_JSON... --out CSV  rows from the per-point JSON the embedding sweep writes
   plot-train CSV --png PNG           PSNR against training time, front marked
   plot-embed CSV --png PNG           BER and PSNR against embedding time, fronts marked
@@ -123,7 +124,7 @@ def load_json(path):
 
 TRAIN_FIELDS = ["setting", "downscale", "max_iterations", "densify_until_iter", "iteration",
                 "train_seconds", "test_psnr", "test_ssim", "num_gaussians", "run_wall_seconds",
-                "load_avg_after", "final", "pareto"]
+                "load_avg_after", "final", "pareto", "pareto_final"]
 
 
 def train_rows(run_dir):
@@ -174,11 +175,18 @@ def cmd_train_csv(args):
         group = [i for i, r in enumerate(rows) if r["downscale"] == ds]
         points = [(finite(rows[i]["train_seconds"]), finite(rows[i]["test_psnr"])) for i in group]
         front |= {group[k] for k in pareto_front(points, maximize_y=True)}
+    # The same among run ends only: what a run of that many iterations delivers.
+    front_final = set()
+    for ds in sorted({r["downscale"] for r in rows}):
+        group = [i for i, r in enumerate(rows) if r["downscale"] == ds and r["final"] == 1]
+        points = [(finite(rows[i]["train_seconds"]), finite(rows[i]["test_psnr"])) for i in group]
+        front_final |= {group[k] for k in pareto_front(points, maximize_y=True)}
     for i, r in enumerate(rows):
         r["pareto"] = 1 if i in front else 0
+        r["pareto_final"] = 1 if i in front_final else 0
     atomic_write(args.out, csv_text(TRAIN_FIELDS, rows))
-    print("pareto_plot: %d rows, %d on the per-resolution fronts -> %s" %
-          (len(rows), len(front), args.out))
+    print("pareto_plot: %d rows, %d on the per-resolution fronts, %d run ends on theirs -> %s" %
+          (len(rows), len(front), len(front_final), args.out))
 
 
 EMBED_FIELDS = ["setting", "iterations", "crop_size", "distortions", "num_bits", "embed_seconds",
@@ -301,7 +309,10 @@ def cmd_plot_train(args):
             name = "$S%d" % len(blocks)
             blocks.append("%s << EOD\n%s\nEOD" % (name, data_block(
                 [r for r in sub if r["setting"] == s], ["train_seconds", "test_psnr", "iteration"])))
-            plots.append("%s using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title \"%s\"" % (name, s))
+            # Dashed: density control stopped early; dotted: none.
+            dash = 3 if "no densification" in s else 2 if "densify until" in s else 1
+            plots.append("%s using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt %d title \"%s\"" %
+                         (name, dash, s))
         ends = "$E%s" % ds
         blocks.append("%s << EOD\n%s\nEOD" % (ends, data_block(
             [r for r in sub if r.get("final") == "1"], ["train_seconds", "test_psnr", "iteration"])))

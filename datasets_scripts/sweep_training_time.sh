@@ -13,7 +13,8 @@ writes, under OUT:
   training.csv   setting, downscale, max_iterations, densify_until_iter, iteration,
                  train_seconds (training steps only), test_psnr, test_ssim, num_gaussians,
                  run_wall_seconds (whole command), load_avg_after, pareto (1 = on the front of
-                 the runs at that downscale: PSNR is against ground truth at that resolution)
+                 the runs at that downscale: PSNR is against ground truth at that resolution),
+                 final (1 = last test of a run), pareto_final (front among run ends only)
   training.png   PSNR against training time, one curve per setting, front marked (gnuplot)
   commands.txt   the exact commands run
   runs/<setting>/  each run's train_log.jsonl, report.json, train_stdout.txt

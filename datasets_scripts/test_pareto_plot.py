@@ -92,6 +92,9 @@ class TrainCsvTest(unittest.TestCase):
             self.assertEqual([(r["setting"], r["iteration"], r["pareto"]) for r in rows],
                              [("a", "100", "1"), ("a", "200", "1"),
                               ("b", "100", "1"), ("b", "200", "0")])
+            # Only the last row of a run is a run end; each resolution has one here.
+            self.assertEqual([(r["final"], r["pareto_final"]) for r in rows],
+                             [("0", "0"), ("1", "1"), ("0", "0"), ("1", "1")])
 
     def test_missing_log_is_a_one_line_error(self):
         with tempfile.TemporaryDirectory() as tmp:

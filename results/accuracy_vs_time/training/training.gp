@@ -136,27 +136,27 @@ $F2 << EOD
 312.631 27.5496 3000.0
 EOD
 set terminal pngcairo size 1000,960 font ",10" noenhanced
-set output "/work/main/results/accuracy_vs_time/training/training.png"
+set output "results/accuracy_vs_time/training/training.png"
 set multiplot layout 2,1 title "3DGS training on demo_scene: held-out PSNR against wall time"
 set xlabel "training wall time (s, training steps only, 1 thread)"
 set ylabel "held-out PSNR (dB)"
 set grid
 set key outside right
 set title "1/4 resolution (held-out PSNR against ground truth at 1/4)"
-plot $S0 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/4 res, 1000 it", \
-  $S1 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/4 res, 1500 it", \
-  $S2 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/4 res, 2000 it", \
-  $S3 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/4 res, 3000 it", \
-  $S4 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/4 res, 3000 it, no densification", \
-  $S5 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/4 res, 3000 it, densify until 1000", \
+plot $S0 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 1 title "1/4 res, 1000 it", \
+  $S1 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 1 title "1/4 res, 1500 it", \
+  $S2 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 1 title "1/4 res, 2000 it", \
+  $S3 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 1 title "1/4 res, 3000 it", \
+  $S4 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 3 title "1/4 res, 3000 it, no densification", \
+  $S5 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 2 title "1/4 res, 3000 it, densify until 1000", \
   $E4 using 1:2 with points pt 5 ps 1.1 lc rgb "black" title "end of a run", \
   $F4 using 1:2 with lines dt 2 lw 1 lc rgb "black" notitle, \
   $F4 using 1:2 with points pt 6 ps 2.2 lw 2 lc rgb "red" title "Pareto front (this resolution)", \
   $F4 using 1:2:(sprintf("%d", $3)) with labels offset 0,1.1 font ",8" notitle
 set title "1/2 resolution (held-out PSNR against ground truth at 1/2)"
-plot $S8 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/2 res, 1000 it", \
-  $S9 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/2 res, 2000 it", \
-  $S10 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 title "1/2 res, 3000 it", \
+plot $S8 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 1 title "1/2 res, 1000 it", \
+  $S9 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 1 title "1/2 res, 2000 it", \
+  $S10 using 1:2 with linespoints pt 7 ps 0.6 lw 1.5 dt 1 title "1/2 res, 3000 it", \
   $E2 using 1:2 with points pt 5 ps 1.1 lc rgb "black" title "end of a run", \
   $F2 using 1:2 with lines dt 2 lw 1 lc rgb "black" notitle, \
   $F2 using 1:2 with points pt 6 ps 2.2 lw 2 lc rgb "red" title "Pareto front (this resolution)", \
