@@ -106,6 +106,7 @@ for item in "${items[@]}"; do
   decoder_by_len[$len]="$path"
   lengths+=("$len")
 done
+[ ${#lengths[@]} -gt 0 ] || die "--decoders: no decoder given"
 message_for() {  # a fixed pseudo-random message of $1 bits
   python3 -c "import random,sys; n=int(sys.argv[1]); r=random.Random(n); print('bits:'+''.join(str(r.getrandbits(1)) for _ in range(n)))" "$1"
 }
