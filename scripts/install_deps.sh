@@ -11,8 +11,8 @@ pkgs=(build-essential cmake git pkg-config clang-format
 pkgs+=(povray povray-includes unzip curl)
 # Fuzzing only (scripts/fuzz.sh): clang and its libFuzzer/sanitizer runtimes.
 pkgs+=(clang libclang-rt-14-dev)
-# Accuracy-vs-time plots only (datasets_scripts/sweep_*_time.sh, pareto_plot.py): PNGs via gnuplot.
-pkgs+=(gnuplot-nox)
+# Accuracy-vs-time plots (datasets_scripts/sweep_*_time.sh, pareto_plot.py, tested by CTest): PNGs via gnuplot.
+pkgs+=(gnuplot-nox python3)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
