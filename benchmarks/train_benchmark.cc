@@ -90,8 +90,10 @@ double ProcessCpuSeconds() {
 // Runs `warmup` + `count` iterations without density control; medians.
 StageTimes TimeIterations(const TrainingViews& views,
                           const std::vector<size_t>& train, GaussianModel model,
-                          double extent, int active_sh, int warmup, int count) {
+                          double extent, int active_sh, int warmup, int count,
+                          bool half_moments = false) {
   TrainerOptions options;
+  options.adam.half_moments = half_moments;
   options.iterations = 1 << 30;
   // Raise the SH degree once per warm-up iteration up to active_sh.
   options.sh_increase_interval = active_sh > 0 ? 1 : 0;
@@ -254,6 +256,9 @@ int main(int argc, char** argv) {
     const StageTimes grown_times =
         TimeIterations(views, train, big, extent, 3, 3, iterations);
     PrintStages("grown/SH3", big.size(), grown_times);
+    const StageTimes half_times =
+        TimeIterations(views, train, big, extent, 3, 3, iterations, true);
+    PrintStages("bfloat16", big.size(), half_times);
     const auto [accumulate_s, densify_s] =
         TimeDensity(views, train, big, extent);
     std::printf(
@@ -264,14 +269,18 @@ int main(int argc, char** argv) {
     TrainerOptions options;
     Trainer sizing(options, views, train, init, extent, MakeCpuRasterizer());
     const size_t state_bytes = sizing.StateBytesPerGaussian();
+    options.adam.half_moments = true;
+    Trainer half(options, views, train, init, extent, MakeCpuRasterizer());
+    const size_t half_bytes = half.StateBytesPerGaussian();
+    options.adam.half_moments = false;
     options.adam.compact_moments = true;
     Trainer compact(options, views, train, init, extent, MakeCpuRasterizer());
     const size_t compact_bytes = compact.StateBytesPerGaussian();
     std::printf(
         "training state per Gaussian (SH degree 3): %zu bytes with Inria's "
-        "Adam (parameters 236, moments 472, gradients 245, density "
-        "statistics 10); %zu bytes with --compact_optimizer (moments 83)\n",
-        state_bytes, compact_bytes);
+        "Adam (float32 moments), %zu with --moment_precision bfloat16, %zu "
+        "with --compact_optimizer\n",
+        state_bytes, half_bytes, compact_bytes);
     if (!json_path.empty()) {
       nlohmann::json j;
       j["workspace"] = workspace_path;
@@ -285,6 +294,8 @@ int main(int argc, char** argv) {
       j["density_densify_ms"] = 1e3 * densify_s;
       j["state_bytes_per_gaussian"] = state_bytes;
       j["state_bytes_per_gaussian_compact"] = compact_bytes;
+      j["state_bytes_per_gaussian_bfloat16"] = half_bytes;
+      j["grown_bfloat16"] = StagesJson(big.size(), half_times);
       AtomicWriteFile(json_path, j.dump(2) + "\n");
     }
   } catch (const std::exception& e) {

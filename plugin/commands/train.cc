@@ -72,11 +72,6 @@ void Validate(const TrainArgs& a) {
     Fail("--moment_precision must be float32 or bfloat16, not '" +
          Printable(a.moment_precision) + "'");
   }
-  if (a.compact_optimizer && a.moment_precision != "float32") {
-    Fail(
-        "--compact_optimizer and --moment_precision bfloat16 exclude each "
-        "other");
-  }
   if (a.sh_degree < 0 || a.sh_degree > 3) Fail("--sh_degree must be 0-3");
   const int d = a.workspace.downscale;
   if (d != 1 && d != 2 && d != 4 && d != 8) {
@@ -105,7 +100,7 @@ void WriteReport(const std::string& path, const TrainArgs& a,
   j["sh_degree"] = a.sh_degree;
   j["eval"] = a.eval;
   j["compact_optimizer"] = a.compact_optimizer;
-  j["moment_precision"] = a.moment_precision;
+  j["moment_precision"] = a.compact_optimizer ? "compact8" : a.moment_precision;
   j["state_bytes_per_gaussian"] = trainer.StateBytesPerGaussian();
   j["metrics_split"] = split;
   j["num_metric_views"] = eval.num_views;
@@ -159,11 +154,13 @@ int RunTrain(int argc, char** argv) {
              "Last iteration of adaptive density control (Inria: 15000)");
   parser.AddFlag("compact_optimizer", &a.compact_optimizer,
                  "Compact Adam moments (83 instead of 472 bytes per "
-                 "Gaussian; not Inria's exact optimiser)");
+                 "Gaussian; not Inria's exact optimiser; overrides "
+                 "--moment_precision)");
   parser.Add("moment_precision", &a.moment_precision,
-             "Adam moments of all groups but positions: float32 (Inria) or "
-             "bfloat16 with stochastic rounding (224 bytes per Gaussian "
-             "less)");
+             "Adam moments of all groups but positions: float32 (Inria's; "
+             "795 bytes of training state per Gaussian at SH degree 3) or "
+             "bfloat16 with stochastic rounding (571 bytes; see the README "
+             "for its quality)");
   if (!parser.Parse(argc, argv)) return 0;
   Validate(a);
   if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
@@ -202,7 +199,9 @@ int RunTrain(int argc, char** argv) {
   options.seed = static_cast<uint64_t>(a.seed);
   options.adam.position_lr_max_steps = a.iterations;
   options.adam.compact_moments = a.compact_optimizer;
-  options.adam.half_moments = a.moment_precision == "bfloat16";
+  // The 8-bit compact moments replace either precision.
+  options.adam.half_moments =
+      !a.compact_optimizer && a.moment_precision == "bfloat16";
   options.density.densify_from_iter = a.densify_from_iter;
   options.density.densify_until_iter = a.densify_until_iter;
   options.density.white_background =

@@ -112,9 +112,6 @@ TEST(TrainCli, BadInputGivesOneLineErrors) {
        "--sh_degree"},
       {" train --workspace_path x --output_path y --moment_precision fp8",
        "--moment_precision"},
-      {" train --workspace_path x --output_path y --compact_optimizer "
-       "--moment_precision bfloat16",
-       "exclude each other"},
       {" train --workspace_path x --output_path " + dir.path() + "/o2 --resume",
        "no checkpoint"},
       {" render --input_path " + dir.path() +
