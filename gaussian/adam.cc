@@ -394,12 +394,11 @@ size_t Adam::StepGroup(ParamGroup group, const GaussianGradients& grads,
     const float* g =
         expand_sh ? ExpandShGradients(grads, group, i0, i1, stride, &g_buf)
                   : dense + v0;
-    float* m = s.exp_avg.data() + v0;
-    float* v = s.exp_avg_sq.data() + v0;
-    if (half) {
-      m = DecodeBf16(s.exp_avg_h.data() + v0, count, &m_buf);
-      v = DecodeBf16(s.exp_avg_sq_h.data() + v0, count, &v_buf);
-    }
+    // (The unused layout's vectors are empty: no offsets into them.)
+    float* m = half ? DecodeBf16(s.exp_avg_h.data() + v0, count, &m_buf)
+                    : s.exp_avg.data() + v0;
+    float* v = half ? DecodeBf16(s.exp_avg_sq_h.data() + v0, count, &v_buf)
+                    : s.exp_avg_sq.data() + v0;
     float* p = params->data() + v0;
     if (use_mask) {
       for (int64_t i = i0; i < i1; ++i) {
