@@ -156,7 +156,7 @@ for len in "${lengths[@]}"; do
         cmd=(nice -n 10 "$binary" embed --input_path "$raw_path" --workspace_path "$workspace"
           --downscale "$downscale" --decoder "$dec" --message "$message" --output_path "$tmp_wm"
           --iterations "$iters" --crop_size "$crop" --distortions "$dist_arg"
-          --num_threads "$threads" --seed "$seed")
+          --num_threads "$threads" --seed "$seed" --eval)
         echo "${cmd[*]}" | sed -e "s#$tmp_wm#$wm#" | rel >>"$commands"
         echo "sweep_embedding_time: $name ($(date -u +%T))" >&2
         t0=$(date +%s.%N)

@@ -35,7 +35,7 @@ raw="$out/train/point_cloud.ply"
 
 run embed --input_path "$raw" --workspace_path "$scene" --downscale 2 \
   --decoder "$decoder" --message "$message" --output_path "$out/wm.ply" \
-  --iterations "$embed_iters" --crop_size 64 --check_every 50 --check_views 4
+  --iterations "$embed_iters" --crop_size 64 --check_every 50 --check_views 4 --eval
 
 for attack in gn:0.01 dropout:0.1 crop:0.1; do
   run attack --input_path "$out/wm.ply" --attack "$attack" \

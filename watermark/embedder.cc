@@ -215,6 +215,7 @@ std::string Embedder::RunSignature() const {
   j["crop_size"] = options_.crop_size;
   j["densify"] = options_.densify;
   j["message"] = BitsToString(message_);
+  j["train_views"] = train_views_.size();
   return j.dump();
 }
 

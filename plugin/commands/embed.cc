@@ -44,6 +44,8 @@ struct EmbedArgs {
   int num_threads = 0;
   int64_t checkpoint_every = 0;
   bool resume = false;
+  // Hold out every 8th view, as train --eval, so eval scores unseen views.
+  bool eval = false;
 };
 
 void Validate(const EmbedArgs& a) {
@@ -141,6 +143,10 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("checkpoint_every", &a.checkpoint_every,
              "Write OUTPUT.ckpt every N iterations (0 = never)");
   parser.AddFlag("resume", &a.resume, "Continue from OUTPUT.ckpt");
+  parser.AddFlag(
+      "eval", &a.eval,
+      "Fine-tune on the training views only, holding out every 8th "
+      "view as train --eval does (so that eval scores unseen views)");
   if (!parser.Parse(argc, argv)) return 0;
   Validate(a);
   if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
@@ -172,7 +178,7 @@ int RunEmbed(int argc, char** argv) {
   Bits message = ParseMessage(a.message, decoder.NumBits());
   const Workspace workspace = Workspace::Open(a.workspace);
   const WorkspaceViews views(workspace);
-  const std::vector<size_t> train_views = workspace.TrainViews(false);
+  const std::vector<size_t> train_views = workspace.TrainViews(a.eval);
   options.check_views = SpreadViews(train_views, a.check_views);
   const double extent = workspace.SceneExtent();
   const RenderCamera first = views.Camera(train_views.front());

@@ -73,6 +73,16 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
                               "2");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("per iteration"), std::string::npos);
+  EXPECT_NE(run.output.find(" 6 views "), std::string::npos) << run.output;
+  // --eval holds out every 8th view (here view 0) as train --eval does.
+  const auto held_out =
+      RunCommand(base + " --message hex:a5c3 --output_path " +
+                 std::string(dir / "wm_eval.ply") +
+                 " --iterations 2 --crop_size 24 --densify off --check_every 2"
+                 " --num_threads 1 --eval");
+  ASSERT_EQ(held_out.exit_code, 0) << held_out.output;
+  EXPECT_NE(held_out.output.find(" 5 views "), std::string::npos)
+      << held_out.output;
   const PlyData in = ReadPly(raw);
   const PlyData out = ReadPly(wm);
   EXPECT_EQ(out.layout.format, PlyFormat::kAscii);
