@@ -128,6 +128,19 @@ std::string Trainer::RunSignature() const {
   j["compact_moments"] = options_.adam.compact_moments;
   // Only when set, so that checkpoints of runs before the option still match.
   if (options_.adam.half_moments) j["half_moments"] = true;
+  // Density schedule, also only when it differs from Inria's (same reason):
+  // resuming with another schedule would silently give another model.
+  const DensityOptions& d = options_.density;
+  const DensityOptions inria;
+  if (d.densify_from_iter != inria.densify_from_iter ||
+      d.densify_until_iter != inria.densify_until_iter ||
+      d.densification_interval != inria.densification_interval ||
+      d.opacity_reset_interval != inria.opacity_reset_interval ||
+      d.grad_threshold != inria.grad_threshold) {
+    j["density"] = {d.densify_from_iter, d.densify_until_iter,
+                    d.densification_interval, d.opacity_reset_interval,
+                    d.grad_threshold};
+  }
   return j.dump();
 }
 

@@ -271,6 +271,14 @@ TEST(Trainer, ResumeRefusesAnotherRunsCheckpoint) {
   o.seed = 6;
   Trainer b(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
   EXPECT_THROW(b.Resume(dir + "/a.ckpt"), Error);
+  // Another density schedule is another run too.
+  o.seed = 5;
+  o.density.densify_until_iter += 100;
+  Trainer c(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  EXPECT_THROW(c.Resume(dir + "/a.ckpt"), Error);
+  o.density.densify_until_iter -= 100;
+  Trainer same(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  EXPECT_NO_THROW(same.Resume(dir + "/a.ckpt"));
 }
 
 TEST(Trainer, NonFiniteLossStopsAndKeepsTheLastCheckpoint) {
