@@ -39,16 +39,27 @@ void ShBasisGradient(int degree, double x, double y, double z, double* d_dx,
   d_dx[15] = kShC3[6] * (3 * xx - 3 * yy), d_dy[15] = -6 * kShC3[6] * x * y;
 }
 
+namespace {
+
+// dir / |dir| into x, y, z (and |dir|); false (and +z) for a zero direction.
+bool UnitDirection(const double* dir, double* norm, double* x, double* y,
+                   double* z) {
+  *norm = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+  const bool ok = *norm > 1e-30;
+  *x = ok ? dir[0] / *norm : 0;
+  *y = ok ? dir[1] / *norm : 0;
+  *z = ok ? dir[2] / *norm : 1;
+  return ok;
+}
+
+}  // namespace
+
 void ShColorBackward(int degree, const float* dc, const float* rest,
                      const double* dir, const double* grad_rgb, float* grad_dc,
                      float* grad_rest, double* grad_dir) {
   (void)dc;
-  const double norm =
-      std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-  const bool degenerate = !(norm > 1e-30);
-  const double x = degenerate ? 0 : dir[0] / norm;
-  const double y = degenerate ? 0 : dir[1] / norm;
-  const double z = degenerate ? 1 : dir[2] / norm;
+  double norm, x, y, z;
+  const bool degenerate = !UnitDirection(dir, &norm, &x, &y, &z);
   double basis[16], d_dx[16], d_dy[16], d_dz[16];
   ShBasis(degree, x, y, z, basis);
   ShBasisGradient(degree, x, y, z, d_dx, d_dy, d_dz);
@@ -81,14 +92,18 @@ void ShColorBackward(int degree, const float* dc, const float* rest,
 void ShCoefficientGradients(int degree, const float* dir, const float* grad_rgb,
                             int rest_stride, float* grad_dc, float* grad_rest) {
   const double d[3] = {dir[0], dir[1], dir[2]};
-  const double g[3] = {grad_rgb[0], grad_rgb[1], grad_rgb[2]};
-  std::fill_n(grad_dc, 3, 0.f);
+  double norm, x, y, z, basis[16];
+  UnitDirection(d, &norm, &x, &y, &z);
+  ShBasis(degree, x, y, z, basis);
   std::fill_n(grad_rest, rest_stride, 0.f);
-  // Only the coefficient products are wanted; rest values do not enter them.
-  static const float kNoRest[45] = {};
-  double unused_dir[3] = {0, 0, 0};
-  ShColorBackward(degree, grad_dc, kNoRest, d, g, grad_dc, grad_rest,
-                  unused_dir);
+  for (int c = 0; c < 3; ++c) {
+    grad_dc[c] = static_cast<float>(basis[0] * grad_rgb[c]);
+  }
+  for (int k = 1; k < (degree + 1) * (degree + 1); ++k) {
+    for (int c = 0; c < 3; ++c) {
+      grad_rest[(k - 1) * 3 + c] = static_cast<float>(basis[k] * grad_rgb[c]);
+    }
+  }
 }
 
 }  // namespace watergs

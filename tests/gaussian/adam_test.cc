@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <utility>
 
 #include "gaussian/error.h"
 #include "gaussian/sh.h"
@@ -257,43 +258,50 @@ TEST(CompactAdam, FirstStepNormalisesByTheGroupRms) {
   }
 }
 
-TEST(CompactAdam, ConvergesLikeFullAdamOnAQuadratic) {
-  // Minimise sum_j a_j (p_j - c_j)^2 over every group with both variants.
-  auto run = [](bool compact) {
-    GaussianModel model = RandomModel(20, 2, 13);
-    GaussianModel target = RandomModel(20, 2, 14);
-    AdamOptions options;
-    options.compact_moments = compact;
-    options.position_lr_init = options.position_lr_final = 0.02;
-    options.feature_lr = options.feature_rest_lr = options.opacity_lr = 0.02;
-    options.scaling_lr = options.rotation_lr = 0.02;
-    Adam adam(options, 1.0);
-    adam.Init(model);
-    GaussianGradients grads;
-    double loss = 0, initial = 0;
-    for (int t = 1; t <= 1500; ++t) {
-      adam.SetIteration(t);
-      grads.Reset(model.size(), model.sh_rest_stride());
-      loss = 0;
-      for (ParamGroup g : {ParamGroup::kXyz, ParamGroup::kFDc,
-                           ParamGroup::kFRest, ParamGroup::kOpacity,
-                           ParamGroup::kScaling, ParamGroup::kRotation}) {
-        auto& p = GroupParams(model, g);
-        const auto& c = GroupParams(target, g);
-        auto& d = const_cast<std::vector<float>&>(GroupGrads(grads, g));
-        for (size_t j = 0; j < p.size(); ++j) {
-          const double a = 1 + j % 5;
-          loss += a * (p[j] - c[j]) * (p[j] - c[j]);
-          d[j] = float(2 * a * (p[j] - c[j]));
-        }
+// Minimises sum_j a_j (p_j - c_j)^2 over every group, from RandomModel(n,
+// degree, seed) to RandomModel(n, degree, seed + 1), all rates `lr`;
+// returns the loss at the first and at the last step.
+std::pair<double, double> MinimiseQuadratic(AdamOptions options, size_t n,
+                                            int degree, uint32_t seed,
+                                            double lr, int steps) {
+  GaussianModel model = RandomModel(n, degree, seed);
+  const GaussianModel target = RandomModel(n, degree, seed + 1);
+  options.position_lr_init = options.position_lr_final = lr;
+  options.feature_lr = options.feature_rest_lr = options.opacity_lr = lr;
+  options.scaling_lr = options.rotation_lr = lr;
+  Adam adam(options, 1.0);
+  adam.Init(model);
+  GaussianGradients grads;
+  double loss = 0, initial = 0;
+  for (int t = 1; t <= steps; ++t) {
+    adam.SetIteration(t);
+    grads.Reset(model.size(), model.sh_rest_stride());
+    loss = 0;
+    for (ParamGroup g :
+         {ParamGroup::kXyz, ParamGroup::kFDc, ParamGroup::kFRest,
+          ParamGroup::kOpacity, ParamGroup::kScaling, ParamGroup::kRotation}) {
+      auto& p = GroupParams(model, g);
+      const auto& c = GroupParams(target, g);
+      auto& d = const_cast<std::vector<float>&>(GroupGrads(grads, g));
+      for (size_t j = 0; j < p.size(); ++j) {
+        const double a = 1 + j % 5;
+        loss += a * (p[j] - c[j]) * (p[j] - c[j]);
+        d[j] = float(2 * a * (p[j] - c[j]));
       }
-      if (t == 1) initial = loss;
-      adam.Step(grads, &model);
     }
-    return std::pair{initial, loss};
-  };
-  const auto [initial, full] = run(false);
-  const auto [initial_compact, compact] = run(true);
+    if (t == 1) initial = loss;
+    adam.Step(grads, &model);
+  }
+  return {initial, loss};
+}
+
+TEST(CompactAdam, ConvergesLikeFullAdamOnAQuadratic) {
+  AdamOptions compact_options;
+  compact_options.compact_moments = true;
+  const auto [initial, full] =
+      MinimiseQuadratic(AdamOptions{}, 20, 2, 13, 0.02, 1500);
+  const auto [initial_compact, compact] =
+      MinimiseQuadratic(compact_options, 20, 2, 13, 0.02, 1500);
   EXPECT_EQ(initial, initial_compact);
   EXPECT_LT(full, 1e-3 * initial);
   EXPECT_LT(compact, 1e-3 * initial);
@@ -370,39 +378,12 @@ TEST(HalfMomentAdam, SecondMomentTracksItsEmaThroughStochasticRounding) {
 }
 
 TEST(HalfMomentAdam, ConvergesLikeFloatAdamOnAQuadratic) {
-  auto run = [](bool half) {
-    GaussianModel model = RandomModel(40, 3, 23);
-    const GaussianModel target = RandomModel(40, 3, 24);
-    AdamOptions options;
-    options.half_moments = half;
-    options.position_lr_init = options.position_lr_final = 0.01;
-    options.feature_lr = options.feature_rest_lr = options.opacity_lr = 0.01;
-    options.scaling_lr = options.rotation_lr = 0.01;
-    Adam adam(options, 1.0);
-    adam.Init(model);
-    GaussianGradients grads;
-    double loss = 0;
-    for (int t = 1; t <= 1500; ++t) {
-      adam.SetIteration(t);
-      grads.Reset(model.size(), model.sh_rest_stride());
-      loss = 0;
-      for (ParamGroup g : {ParamGroup::kXyz, ParamGroup::kFDc,
-                           ParamGroup::kFRest, ParamGroup::kOpacity,
-                           ParamGroup::kScaling, ParamGroup::kRotation}) {
-        auto& p = GroupParams(model, g);
-        const auto& c = GroupParams(target, g);
-        auto& d = const_cast<std::vector<float>&>(GroupGrads(grads, g));
-        for (size_t j = 0; j < p.size(); ++j) {
-          const double a = 1 + j % 5;
-          loss += a * (p[j] - c[j]) * (p[j] - c[j]);
-          d[j] = float(2 * a * (p[j] - c[j]));
-        }
-      }
-      adam.Step(grads, &model);
-    }
-    return loss;
-  };
-  const double full = run(false), half = run(true);
+  AdamOptions half_options;
+  half_options.half_moments = true;
+  const double full =
+      MinimiseQuadratic(AdamOptions{}, 40, 3, 23, 0.01, 1500).second;
+  const double half =
+      MinimiseQuadratic(half_options, 40, 3, 23, 0.01, 1500).second;
   EXPECT_LT(full, 1e-3);
   EXPECT_LT(half, 3 * full + 1e-4);
 }
