@@ -81,9 +81,8 @@ while [ $# -gt 0 ]; do
   esac
 done
 
-[ -x "$binary" ] || die "$binary: no watergs executable (build it: cmake --build build --target watergs)"
-[ -d "$workspace/images" ] || die "$workspace: not a COLMAP workspace (no images/ folder)"
-[ -d "$workspace/sparse/0" ] || die "$workspace: not a COLMAP workspace (no sparse/0 folder)"
+source "$(dirname "${BASH_SOURCE[0]}")/lib_sweep.sh"
+require_watergs_workspace "$binary" "$workspace"
 [[ "$downscale" =~ ^(1|2|4|8)$ ]] || die "--downscale '$downscale': expected 1, 2, 4 or 8"
 [[ "$raw_iterations" =~ ^[1-9][0-9]*$ ]] || die "--raw_iterations '$raw_iterations': not a positive integer"
 [[ "$threads" =~ ^[0-9]+$ ]] || die "--threads '$threads': not a non-negative integer"
