@@ -44,7 +44,11 @@ OptionParser::OptionParser(std::string command, std::string summary)
       options_("Options") {
   options_.add_options()("help,h", "Print this help")(
       "project_path", po::value<std::string>(&project_path_),
-      "An .ini file holding any of these options as `name = value`");
+      "An .ini file holding any of these options as `name = value`")(
+      "device", po::value<std::string>(&device_text_)->default_value("cpu"),
+      "cpu, cuda or auto (CUDA when built with it and a GPU is visible). "
+      "The default stays cpu until the CUDA parity tests have passed on a "
+      "GPU (README, CUDA backend)");
 }
 
 void OptionParser::AddFlag(const std::string& name, bool* value,
@@ -87,6 +91,7 @@ bool OptionParser::Parse(int argc, char** argv) {
     Fail("watergs " + command_ + ": " + Message(e) + " (see `watergs " +
          command_ + " -h`)");
   }
+  device_ = ResolveDevice(device_text_);
   return true;
 }
 

@@ -6,6 +6,8 @@
 #include <boost/program_options.hpp>
 #include <string>
 
+#include "gaussian/device.h"
+
 namespace watergs {
 
 class OptionParser {
@@ -39,11 +41,18 @@ class OptionParser {
   // The help text.
   std::string Help() const;
 
+  // The device `--device cpu|cuda|auto` (every command has it) resolved to;
+  // valid after Parse.
+  Device device() const { return device_; }
+
  private:
   std::string command_;
   std::string summary_;
   boost::program_options::options_description options_;
   std::string project_path_;
+  // --device as typed, and what it resolved to.
+  std::string device_text_ = "cpu";
+  Device device_ = Device::kCpu;
 };
 
 }  // namespace watergs

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/loss.h"
@@ -191,7 +192,7 @@ int RunEmbed(int argc, char** argv) {
 
   const GaussianModel raw = ply.model;
   Embedder embedder(options, views, train_views, std::move(ply.model), extent,
-                    &decoder, message, MakeCpuRasterizer());
+                    &decoder, message, MakeRasterizer(parser.device()));
   if (a.resume) {
     embedder.Resume(checkpoint_path);
     std::printf("embed: resumed at iteration %lld\n",
@@ -234,7 +235,7 @@ int RunEmbed(int argc, char** argv) {
       100 * after.aggregate_ber, before.psnr, after.psnr, psnr_vs_raw);
   PrintTimings(embedder);
   if (a.crop_size > 0 && !a.full_frame_loss) {
-    auto rasterizer = MakeCpuRasterizer();
+    auto rasterizer = MakeRasterizer(parser.device());
     const int w = std::min(a.crop_size, first.width);
     const int h = std::min(a.crop_size, first.height);
     const PixelRect rect{(first.width - w) / 2, (first.height - h) / 2, w, h};

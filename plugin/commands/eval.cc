@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
@@ -135,9 +136,9 @@ int RunEval(int argc, char** argv) {
   const std::vector<size_t> eval_views =
       SelectViews(workspace, which_views, max_views);
 
-  const EvaluationReport report =
-      EvaluateWatermark(*MakeCpuRasterizer(), raw.model, watermarked.model,
-                        views, eval_views, decoder, bits, options);
+  const EvaluationReport report = EvaluateWatermark(
+      *MakeRasterizer(parser.device()), raw.model, watermarked.model, views,
+      eval_views, decoder, bits, options);
   std::string markdown =
       "# watergs eval\n\nRaw " + raw_path + " (" +
       std::to_string(report.raw_gaussians) + " Gaussians), watermarked " +

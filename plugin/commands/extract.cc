@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "distortion/file_attacks.h"
+#include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
@@ -127,8 +128,8 @@ int RunExtract(int argc, char** argv) {
   VerificationThresholds thresholds;
   thresholds.present_p = present_p;
   const ExtractionResult r =
-      ExtractWatermark(*MakeCpuRasterizer(), ply.model, cameras, names, decoder,
-                       expected.empty() ? nullptr : &expected,
+      ExtractWatermark(*MakeRasterizer(parser.device()), ply.model, cameras,
+                       names, decoder, expected.empty() ? nullptr : &expected,
                        ParseBackground(background), thresholds, attack);
 
   std::printf("extract: %zu views of %s (%zu Gaussians)\n", r.views.size(),

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
@@ -63,7 +64,7 @@ int RunRender(int argc, char** argv) {
   if (split == "all") selected = workspace.TrainViews(false);
   CreateDirectories(output_path);
 
-  auto rasterizer = MakeCpuRasterizer();
+  auto rasterizer = MakeRasterizer(parser.device());
   RenderOptions options;
   options.background = bg;
   options.active_sh_degree = sh_degree;

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
@@ -214,7 +215,7 @@ int RunTrain(int argc, char** argv) {
   options.test_iterations = test_iterations;
   options.show_progress = true;
   Trainer trainer(options, views, train_views, init, extent,
-                  MakeCpuRasterizer());
+                  MakeRasterizer(parser.device()));
   if (a.resume) {
     trainer.Resume(checkpoint_path);
     std::printf("train: resumed at iteration %lld\n",

@@ -1,0 +1,31 @@
+// Where the compute runs: the CPU (always) or a CUDA GPU (when the build has
+// the CUDA backend and a GPU is visible). Every command's `--device
+// cpu|cuda|auto` goes through here, and so does the choice of rasterizer.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "gaussian/rasterizer.h"
+
+namespace watergs {
+
+enum class Device { kCpu, kCuda };
+
+// "cpu" or "cuda".
+std::string DeviceName(Device device);
+
+// Whether this build has the CUDA backend and a usable GPU is visible; when
+// not, `why` (if not null) gets one line saying why ("built without CUDA",
+// "no CUDA device visible: ...").
+bool CudaAvailable(std::string* why = nullptr);
+
+// "cpu", "cuda" or "auto" -> the device to use: auto picks CUDA when
+// CudaAvailable(), else the CPU. Throws Error for another word, and for
+// "cuda" when CUDA is not available (saying why).
+Device ResolveDevice(const std::string& text);
+
+// The rasterizer for `device` (CPU: the OpenMP one; CUDA: cuda/).
+std::unique_ptr<Rasterizer> MakeRasterizer(Device device);
+
+}  // namespace watergs
