@@ -66,6 +66,13 @@ int RunTrainDecoder(int argc, char** argv) {
   parser.AddFlag("validate_only", &validate_only,
                  "only validate OUTPUT_PATH on --validation_path");
   if (!parser.Parse(argc, argv)) return 0;
+  if (parser.device() == watergs::Device::kCuda) {
+    // The cuDNN layers exist (watermark/cuda/) but the training loop does not
+    // use them yet: refuse rather than silently train on the CPU.
+    watergs::Fail(
+        "train_decoder --device cuda: decoder training runs on the CPU only "
+        "in this version; use --device cpu");
+  }
   const int bits = options.config.num_bits;
   if (bits != 8 && bits != 16 && bits != 32 && bits != 48 && bits != 64)
     watergs::Fail("--num_bits must be 8, 16, 32, 48 or 64");

@@ -4,10 +4,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "gaussian/error.h"
+#include "tests/plugin/synthetic_model.h"
 
 namespace watergs {
 namespace {
@@ -89,10 +92,80 @@ TEST(OptionParser, MissingProjectFileNamesIt) {
 TEST(OptionParser, HelpReturnsFalse) {
   OptionParser parser("demo", "test");
   Args args({"demo", "-h"});
-  testing::internal::CaptureStdout();
+  ::testing::internal::CaptureStdout();
   EXPECT_FALSE(parser.Parse(args.argc(), args.argv()));
-  EXPECT_NE(testing::internal::GetCapturedStdout().find("Usage: watergs demo"),
-            std::string::npos);
+  EXPECT_NE(
+      ::testing::internal::GetCapturedStdout().find("Usage: watergs demo"),
+      std::string::npos);
+}
+
+// The device a parse of `--device word` resolves to; rethrows its Error.
+Device ParseDevice(const std::string& word) {
+  OptionParser parser("demo", "test");
+  Args args({"demo", "--device", word});
+  EXPECT_TRUE(parser.Parse(args.argc(), args.argv()));
+  return parser.device();
+}
+
+TEST(OptionParser, DeviceDefaultsToCpuAndAutoFollowsAvailability) {
+  OptionParser parser("demo", "test");
+  Args args({"demo"});
+  ASSERT_TRUE(parser.Parse(args.argc(), args.argv()));
+  EXPECT_EQ(parser.device(), Device::kCpu);
+  EXPECT_EQ(ParseDevice("cpu"), Device::kCpu);
+  EXPECT_EQ(ParseDevice("auto"),
+            CudaAvailable() ? Device::kCuda : Device::kCpu);
+}
+
+TEST(OptionParser, CudaWithoutCudaAndUnknownDevicesAreOneLineErrors) {
+  std::string why;
+  if (CudaAvailable(&why)) {
+    EXPECT_EQ(ParseDevice("cuda"), Device::kCuda);
+  } else {
+    try {
+      ParseDevice("cuda");
+      FAIL() << "expected an error";
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find("--device cuda: " + why), std::string::npos)
+          << message;
+      EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    }
+  }
+  try {
+    ParseDevice("gpu\n0");
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("--device: expected cpu, cuda or auto, got 'gpu"),
+              std::string::npos)
+        << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  }
+}
+
+// Every registered command takes --device (the help lists it).
+TEST(OptionParser, EveryCommandTakesDevice) {
+  const std::string bin = testing::WatergsBin();
+  const testing::CommandResult help = testing::RunCommand(bin + " help");
+  ASSERT_EQ(help.exit_code, 0) << help.output;
+  const size_t list = help.output.find("Commands:\n");
+  ASSERT_NE(list, std::string::npos) << help.output;
+  std::istringstream lines(help.output.substr(list + 10));
+  std::string line;
+  int commands = 0;
+  while (std::getline(lines, line)) {
+    std::istringstream words(line);
+    std::string name;
+    if (!(words >> name)) continue;
+    ++commands;
+    const testing::CommandResult run =
+        testing::RunCommand(bin + " " + name + " -h");
+    EXPECT_EQ(run.exit_code, 0) << name << ": " << run.output;
+    EXPECT_NE(run.output.find("--device"), std::string::npos)
+        << name << ": " << run.output;
+  }
+  EXPECT_GE(commands, 10);
 }
 
 }  // namespace
