@@ -4,11 +4,13 @@
 // layers, and random-crop rendering with whole frames. Medians over
 // iterations.
 //   embed_benchmark PLY WORKSPACE DECODER [ITERATIONS=15] [DOWNSCALE=1]
+//                   [DEVICE=cpu|cuda]
 #include <algorithm>
 #include <cstdio>
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "gaussian/ply_io.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
@@ -37,7 +39,7 @@ int main(int argc, char** argv) {
   if (argc < 4) {
     std::fprintf(stderr,
                  "usage: embed_benchmark PLY WORKSPACE DECODER [ITERATIONS] "
-                 "[DOWNSCALE]\n");
+                 "[DOWNSCALE] [DEVICE]\n");
     return 2;
   }
   const int iterations = argc > 4 ? std::stoi(argv[4]) : 15;
@@ -45,6 +47,7 @@ int main(int argc, char** argv) {
   wo.workspace_path = argv[2];
   wo.downscale = argc > 5 ? std::stoi(argv[5]) : 1;
   try {
+    const Device device = ResolveDevice(argc > 6 ? argv[6] : "cpu");
     const PlyData ply = ReadPly(argv[1]);
     Decoder decoder = Decoder::Load(argv[3]);
     const Bits message = ParseMessage("text:WGS-26", decoder.NumBits());
@@ -62,10 +65,10 @@ int main(int argc, char** argv) {
         {"no layers, full frame, decoder frame", "none", 0, false, false},
     };
     std::printf(
-        "%zu Gaussians, %d views %dx%d, %d iterations per config (medians, "
-        "ms)\n",
+        "%zu Gaussians, %d views %dx%d, %d iterations per config, rasterizer "
+        "on %s (medians, ms)\n",
         ply.model.size(), int(train.size()), views.Camera(0).width,
-        views.Camera(0).height, iterations);
+        views.Camera(0).height, iterations, DeviceName(device).c_str());
     std::printf("%-38s %8s %6s %7s %6s %8s %8s %7s %6s\n", "config", "total",
                 "dist", "render", "loss", "decoder", "backward", "density",
                 "adam");
@@ -81,7 +84,7 @@ int main(int argc, char** argv) {
       o.densify = c.densify;
       o.seed = 1;
       Embedder embedder(o, views, train, ply.model, workspace.SceneExtent(),
-                        &decoder, message, MakeCpuRasterizer());
+                        &decoder, message, MakeRasterizer(device));
       embedder.Step();  // warm-up (buffers, image cache)
       std::vector<double> total, dist, render, loss, dec, back, dens, adam;
       for (int i = 0; i < iterations; ++i) {

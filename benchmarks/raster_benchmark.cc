@@ -2,7 +2,10 @@
 // splat-pixel throughput, render-context memory per Gaussian, and the cost
 // of a crop relative to the full frame, on synthetic SfM-like scenes.
 // Usage: raster_benchmark [--threads 2] [--repeats 15] [--sh_degree 3]
-//        [--scenes 0|8|100]  (all, the 8k scene, the 100k scenes)
+//        [--scenes 0|8|100|1000]  (all but 1000, the 8k scene, the 100k
+//        scenes, a 1M-Gaussian scene at 1920x1080) [--device cpu|cuda]
+// On CUDA, times include the host<->device copies of the interface and the
+// device memory the rasterizer holds is reported per Gaussian.
 #include <omp.h>
 
 #include <Eigen/Geometry>
@@ -19,6 +22,10 @@
 #include <vector>
 
 #include "gaussian/cpu_rasterizer.h"
+#include "gaussian/device.h"
+#ifdef WATERGS_WITH_CUDA
+#include "gaussian/cuda/cuda_device.h"
+#endif
 
 namespace watergs {
 namespace {
@@ -28,15 +35,19 @@ struct BenchOptions {
   int threads = 2;
   int repeats = 15;
   int sh_degree = 3;
-  // Which scenes: 0 = all, 8 = the 8k scene only, 100 = the 100k ones only.
+  // Which scenes: 0 = all but the 1M one, 8 = the 8k scene only, 100 = the
+  // 100k ones only, 1000 = 1M Gaussians at 1920x1080.
   int scenes = 0;
+  // Rasterizer under test.
+  Device device = Device::kCpu;
 };
 
-RenderCamera BenchCamera() {
+// 480x360 (scale 1) or 1920x1080-like views of the same scene (scale 4).
+RenderCamera BenchCamera(int scale = 1) {
   RenderCamera cam;
-  cam.width = 480, cam.height = 360;
-  cam.fx = cam.fy = 420;
-  cam.cx = 240, cam.cy = 180;
+  cam.width = 480 * scale, cam.height = scale == 1 ? 360 : 270 * scale;
+  cam.fx = cam.fy = 420 * scale;
+  cam.cx = 0.5 * cam.width, cam.cy = 0.5 * cam.height;
   cam.R =
       Eigen::AngleAxisd(0.1, Eigen::Vector3d(0.3, 1, 0).normalized()).matrix();
   cam.t = Eigen::Vector3d(0.1, -0.05, 0.2);
@@ -150,8 +161,12 @@ double Median(std::vector<double> v) {
 // Times forward, backward and both for one scene and rect; prints a line.
 // Returns the forward+backward median in seconds.
 double Run(const char* name, const GaussianModel& model,
-           const RenderCamera& cam, const RenderOptions& options, int repeats) {
-  auto rasterizer = MakeCpuRasterizer();
+           const RenderCamera& cam, const RenderOptions& options, int repeats,
+           Device device) {
+#ifdef WATERGS_WITH_CUDA
+  if (device == Device::kCuda) ResetCudaMemoryPeak();
+#endif
+  auto rasterizer = MakeRasterizer(device);
   ImageRGB image;
   std::unique_ptr<RenderContext> context;
   rasterizer->Forward(model, cam, options, &image, &context);  // Warm-up.
@@ -170,14 +185,32 @@ double Run(const char* name, const GaussianModel& model,
     auto t1 = std::chrono::steady_clock::now();
     rasterizer->Backward(model, *context, grad, &grads);
     const double b = Seconds(t1);
+#ifdef WATERGS_WITH_CUDA
+    if (device == Device::kCuda) SampleCudaMemory();
+#endif
     fwd.push_back(f), bwd.push_back(b), both.push_back(f + b);
     cpu.push_back(CpuSeconds() - c0);
   }
-  const auto& ctx = dynamic_cast<const CpuRenderContext&>(*context);
+  const auto* ctx = dynamic_cast<const CpuRenderContext*>(context.get());
+  if (!ctx) {
+    double device_bytes = 0;
+#ifdef WATERGS_WITH_CUDA
+    device_bytes = double(CudaMemoryPeakBytes());
+#endif
+    std::printf(
+        "%-26s N=%zu on %s\n"
+        "    wall: forward %.2f ms, backward %.2f ms, fwd+bwd %.2f ms "
+        "(%.0f/s); "
+        "device memory %.0f B/Gaussian (peak over the runs)\n",
+        name, model.size(), DeviceName(device).c_str(), 1e3 * Median(fwd),
+        1e3 * Median(bwd), 1e3 * Median(both), 1.0 / Median(both),
+        device_bytes / std::max<size_t>(1, model.size()));
+    return Median(both);
+  }
   // Splat-pixel pairs the blending loops visit: list entries x 256.
-  const double pairs = 256.0 * ctx.bins.ids.size();
+  const double pairs = 256.0 * ctx->bins.ids.size();
   size_t visible = 0;
-  for (uint8_t v : ctx.visible) visible += v;
+  for (uint8_t v : ctx->visible) visible += v;
   const double min_cpu = *std::min_element(cpu.begin(), cpu.end());
   std::printf(
       "%-26s N=%zu visible=%zu splats=%zu tile-entries=%zu\n"
@@ -185,10 +218,10 @@ double Run(const char* name, const GaussianModel& model,
       "%.0f M splat-pixel/s\n"
       "    cpu (all threads): fwd+bwd median %.2f ms, min %.2f ms; "
       "context %.0f B/Gaussian\n",
-      name, model.size(), visible, ctx.splats.size(), ctx.bins.ids.size(),
+      name, model.size(), visible, ctx->splats.size(), ctx->bins.ids.size(),
       1e3 * Median(fwd), 1e3 * Median(bwd), 1e3 * Median(both),
       1.0 / Median(both), pairs / Median(both) * 1e-6, 1e3 * Median(cpu),
-      1e3 * min_cpu, double(ctx.Bytes()) / std::max<size_t>(1, model.size()));
+      1e3 * min_cpu, double(ctx->Bytes()) / std::max<size_t>(1, model.size()));
   return Median(both);
 }
 
@@ -197,7 +230,9 @@ BenchOptions Parse(int argc, char** argv) {
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i];
     const int value = std::atoi(argv[i + 1]);
-    if (flag == "--threads")
+    if (flag == "--device")
+      o.device = ResolveDevice(argv[i + 1]);
+    else if (flag == "--threads")
       o.threads = value;
     else if (flag == "--repeats")
       o.repeats = value;
@@ -218,31 +253,48 @@ BenchOptions Parse(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   using namespace watergs;
-  const BenchOptions opt = Parse(argc, argv);
+  BenchOptions opt;
+  try {
+    opt = Parse(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "raster_benchmark: %s\n", e.what());
+    return 2;
+  }
   omp_set_num_threads(opt.threads);
   std::printf(
-      "threads=%d repeats=%d sh_degree=%d, 480x360, medians unless noted; "
+      "threads=%d repeats=%d sh_degree=%d device=%s, medians unless noted; "
       "splat-pixel = tile-list entries x 256\n",
-      opt.threads, opt.repeats, opt.sh_degree);
-  const RenderCamera cam = BenchCamera();
+      opt.threads, opt.repeats, opt.sh_degree, DeviceName(opt.device).c_str());
   RenderOptions full;
+  if (opt.scenes == 1000) {
+    const RenderCamera hd = BenchCamera(4);
+    const GaussianModel huge =
+        SyntheticScene(hd, 1000000, opt.sh_degree, true, 3);
+    Run("trained-like 1M 1920x1080", huge, hd, full,
+        std::max(3, opt.repeats / 3), opt.device);
+    RenderOptions crop;
+    crop.rect = {896, 476, 128, 128};
+    Run("trained-like 1M crop128", huge, hd, crop, opt.repeats, opt.device);
+    return 0;
+  }
+  const RenderCamera cam = BenchCamera();
   for (int active : {0, opt.sh_degree}) {
     if (opt.scenes == 100) break;
     full.active_sh_degree = active;
     const GaussianModel sfm =
         SyntheticScene(cam, 8000, opt.sh_degree, false, 1);
     const std::string name = "sfm-init 8k sh" + std::to_string(active);
-    Run(name.c_str(), sfm, cam, full, opt.repeats);
+    Run(name.c_str(), sfm, cam, full, opt.repeats, opt.device);
   }
   full.active_sh_degree = -1;
   if (opt.scenes == 8) return 0;
   const GaussianModel big = SyntheticScene(cam, 100000, opt.sh_degree, true, 2);
-  const double full_time =
-      Run("trained-like 100k", big, cam, full, std::max(3, opt.repeats / 3));
+  const double full_time = Run("trained-like 100k", big, cam, full,
+                               std::max(3, opt.repeats / 3), opt.device);
   RenderOptions crop;
   crop.rect = {176, 116, 128, 128};
   const double crop_time =
-      Run("trained-like 100k crop128", big, cam, crop, opt.repeats);
+      Run("trained-like 100k crop128", big, cam, crop, opt.repeats, opt.device);
   std::printf("crop 128x128 / full 480x360: time ratio %.3f, area ratio %.3f\n",
               crop_time / full_time, 128.0 * 128.0 / (480.0 * 360.0));
   return 0;

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "gaussian/density_strategy.h"
+#include "gaussian/device.h"
 #include "gaussian/file_util.h"
 #include "gaussian/loss.h"
 #include "gaussian/point_init.h"
@@ -29,6 +30,9 @@
 #include "plugin/workspace.h"
 
 namespace {
+
+// Device of the rasterizer under test (--device; the CPU by default).
+watergs::Device g_device = watergs::Device::kCpu;
 
 using namespace watergs;
 using Clock = std::chrono::steady_clock;
@@ -98,8 +102,8 @@ StageTimes TimeIterations(const TrainingViews& views,
   // Raise the SH degree once per warm-up iteration up to active_sh.
   options.sh_increase_interval = active_sh > 0 ? 1 : 0;
   model.sh_degree = std::max(model.sh_degree, active_sh);
-  Trainer trainer(options, views, train, model, extent, MakeCpuRasterizer(),
-                  MakeFixedDensityStrategy());
+  Trainer trainer(options, views, train, model, extent,
+                  MakeRasterizer(g_device), MakeFixedDensityStrategy());
   std::vector<double> f, l, b, a, t, cpu;
   std::array<std::vector<double>, 5> stage_cpu;
   warmup = std::max(warmup, active_sh);
@@ -129,8 +133,8 @@ std::pair<double, double> TimeDensity(const TrainingViews& views,
                                       double extent) {
   TrainerOptions options;
   options.iterations = 10;
-  Trainer trainer(options, views, train, model, extent, MakeCpuRasterizer(),
-                  MakeFixedDensityStrategy());
+  Trainer trainer(options, views, train, model, extent,
+                  MakeRasterizer(g_device), MakeFixedDensityStrategy());
   // Gradients of one view.
   GaussianGradients grads;
   ImageRGB image, grad;
@@ -207,7 +211,7 @@ nlohmann::json StagesJson(size_t n, const StageTimes& s) {
 int main(int argc, char** argv) {
   std::string workspace_path =
       std::string(WATERGS_SOURCE_DIR) + "/datasets_scripts/demo_scene";
-  std::string json_path;
+  std::string json_path, device_text = "cpu";
   int iterations = 30, num_threads = 0;
   size_t grown = 100000;
   for (int i = 1; i + 1 < argc; i += 2) {
@@ -222,6 +226,8 @@ int main(int argc, char** argv) {
       num_threads = std::stoi(value);
     else if (key == "--json")
       json_path = value;
+    else if (key == "--device")
+      device_text = value;
     else {
       std::fprintf(stderr, "unknown option %s\n", key.c_str());
       return 1;
@@ -229,6 +235,7 @@ int main(int argc, char** argv) {
   }
   if (num_threads > 0) omp_set_num_threads(num_threads);
   try {
+    g_device = ResolveDevice(device_text);
     WorkspaceOptions wo;
     wo.workspace_path = workspace_path;
     const Workspace workspace = Workspace::Open(wo);
@@ -240,10 +247,10 @@ int main(int argc, char** argv) {
     const double extent = workspace.SceneExtent();
     const RenderCamera cam = views.Camera(train[0]);
     std::printf(
-        "train_benchmark: %s, %zu views %dx%d, %d threads, %d timed "
-        "iterations (medians)\n",
+        "train_benchmark: %s, %zu views %dx%d, %d threads, rasterizer on %s, "
+        "%d timed iterations (medians)\n",
         workspace_path.c_str(), train.size(), cam.width, cam.height,
-        omp_get_max_threads(), iterations);
+        omp_get_max_threads(), DeviceName(g_device).c_str(), iterations);
 
     const double loss_s = TimeLoss(*views.Image(train[0]), 2 * iterations);
     std::printf("loss (L1 + SSIM, value and gradient) at %dx%d: %.2f ms\n",
@@ -267,14 +274,16 @@ int main(int argc, char** argv) {
         big.size(), 1e3 * accumulate_s, 1e3 * densify_s);
 
     TrainerOptions options;
-    Trainer sizing(options, views, train, init, extent, MakeCpuRasterizer());
+    Trainer sizing(options, views, train, init, extent,
+                   MakeRasterizer(g_device));
     const size_t state_bytes = sizing.StateBytesPerGaussian();
     options.adam.half_moments = true;
-    Trainer half(options, views, train, init, extent, MakeCpuRasterizer());
+    Trainer half(options, views, train, init, extent, MakeRasterizer(g_device));
     const size_t half_bytes = half.StateBytesPerGaussian();
     options.adam.half_moments = false;
     options.adam.compact_moments = true;
-    Trainer compact(options, views, train, init, extent, MakeCpuRasterizer());
+    Trainer compact(options, views, train, init, extent,
+                    MakeRasterizer(g_device));
     const size_t compact_bytes = compact.StateBytesPerGaussian();
     std::printf(
         "training state per Gaussian (SH degree 3): %zu bytes with Inria's "
@@ -285,6 +294,7 @@ int main(int argc, char** argv) {
       nlohmann::json j;
       j["workspace"] = workspace_path;
       j["threads"] = omp_get_max_threads();
+      j["device"] = DeviceName(g_device);
       j["width"] = cam.width;
       j["height"] = cam.height;
       j["loss_ms"] = 1e3 * loss_s;
