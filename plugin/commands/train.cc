@@ -56,6 +56,8 @@ struct TrainArgs {
   std::string background = "0,0,0";
   int64_t seed = 0;
   int num_threads = 0;
+  // Where the rasterizer ran ("cpu" or "cuda"), for the report.
+  std::string device = "cpu";
   bool eval = false;
   int64_t checkpoint_every = 0;
   bool resume = false;
@@ -98,6 +100,7 @@ void WriteReport(const std::string& path, const TrainArgs& a,
   j["scene_extent"] = extent;
   j["seed"] = a.seed;
   j["num_threads"] = omp_get_max_threads();
+  j["device"] = a.device;
   j["sh_degree"] = a.sh_degree;
   j["eval"] = a.eval;
   j["compact_optimizer"] = a.compact_optimizer;
@@ -163,6 +166,7 @@ int RunTrain(int argc, char** argv) {
              "bfloat16 with stochastic rounding (571 bytes; see the README "
              "for its quality)");
   if (!parser.Parse(argc, argv)) return 0;
+  a.device = DeviceName(parser.device());
   Validate(a);
   if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
   const std::array<float, 3> background = ParseBackground(a.background);
