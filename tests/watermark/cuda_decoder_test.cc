@@ -1,0 +1,294 @@
+// Parity of the GPU HiDDeN networks (watermark/cuda/cuda_hidden.h) with the
+// CPU ones: CudaDecoder's logits and input gradients against Decoder's on
+// the shipped decoder and on a tiny random model, the encoder's forward
+// pass, and one training step (forward, backward, Adam). GPU tests skip
+// without a GPU; the file-refusal test needs none (the file is checked
+// before any CUDA call).
+//
+// Tolerances, relative to the largest magnitude of the CPU values compared:
+// 1e-3 through whole networks (8 convolutions, each ~1e-5 relative with
+// cuDNN's Winograd/FFT algorithms (see cuda_nn_test.cc), compounded and
+// amplified by BatchNorm's 1/std scaling); parameters after the Adam step
+// are compared only where the CPU gradient is well above that error (Adam's
+// first step is lr * g / (|g| + eps), so a gradient that is rounding noise,
+// such as a conv bias before a training-mode BatchNorm, moves its parameter
+// by an arbitrary fraction of lr on either side).
+#ifdef WATERGS_WITH_CUDA
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gaussian/error.h"
+#include "tests/common/cuda_test.h"
+#include "watermark/cuda/cuda_hidden.h"
+#include "watermark/decoder.h"
+#include "watermark/decoder_training.h"
+#include "watermark/image_noise.h"
+
+namespace watergs {
+namespace {
+
+const std::string kShippedDecoder =
+    std::string(WATERGS_SOURCE_DIR) + "/watermark/models/decoder_48.bin";
+
+// |gpu - cpu| <= relative * max|cpu| element-wise; reports the worst one.
+void ExpectClose(const std::vector<float>& gpu, const std::vector<float>& cpu,
+                 double relative, const std::string& what) {
+  ASSERT_EQ(gpu.size(), cpu.size()) << what;
+  double scale = 0.0;
+  for (float v : cpu) scale = std::max(scale, double(std::abs(v)));
+  double worst = 0.0;
+  size_t worst_index = 0;
+  for (size_t i = 0; i < cpu.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(gpu[i])) << what << " [" << i << "]";
+    const double diff = std::abs(double(gpu[i]) - cpu[i]);
+    if (diff > worst) worst = diff, worst_index = i;
+  }
+  EXPECT_LE(worst, relative * scale + 1e-30)
+      << what << ": worst element " << worst_index << " gpu "
+      << gpu[worst_index] << " cpu " << cpu[worst_index] << " (max |cpu| "
+      << scale << ")";
+}
+
+// A smooth image with some texture, values in [0,1].
+ImageRGB TestImage(int width, int height, std::mt19937* rng) {
+  ImageRGB image(width, height);
+  std::uniform_real_distribution<float> noise(-0.1f, 0.1f);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      for (int c = 0; c < 3; ++c)
+        image.At(x, y)[c] = std::clamp(
+            0.5f + 0.3f * std::sin(0.3f * x + c) * std::cos(0.2f * y) +
+                noise(*rng),
+            0.f, 1.f);
+  return image;
+}
+
+std::vector<float> RandomVector(size_t n, std::mt19937* rng) {
+  std::normal_distribution<float> dist(0.f, 1.f);
+  std::vector<float> v(n);
+  for (float& x : v) x = dist(*rng);
+  return v;
+}
+
+// Tiny model with non-trivial BatchNorm running statistics.
+HiddenConfig TinyConfig() {
+  HiddenConfig config;
+  config.num_bits = 8;
+  config.channels = 8;
+  config.encoder_blocks = 2;
+  config.decoder_blocks = 2;
+  return config;
+}
+
+void RandomizeRunningStatistics(HiddenModel* model, std::mt19937* rng) {
+  std::uniform_real_distribution<float> mean(-0.5f, 0.5f), var(0.5f, 2.f);
+  for (Parameter* p : model->AllParameters()) {
+    const bool is_mean = p->name.find("running_mean") != std::string::npos;
+    const bool is_var = p->name.find("running_var") != std::string::npos;
+    for (float& v : p->value) {
+      if (is_mean) v = mean(*rng);
+      if (is_var) v = var(*rng);
+    }
+  }
+}
+
+// Decoder and CudaDecoder agree on logits and input gradients of images.
+void ExpectDecodersAgree(Decoder& cpu, CudaDecoder& gpu, int width, int height,
+                         std::mt19937* rng) {
+  ASSERT_EQ(gpu.NumBits(), cpu.NumBits());
+  for (int round = 0; round < 2; ++round) {
+    const ImageRGB image = TestImage(width + round, height, rng);
+    const std::vector<float> logits = cpu.Logits(image);
+    ExpectClose(gpu.Logits(image), logits, 1e-3, "logits");
+    const std::vector<float> dlogits = RandomVector(logits.size(), rng);
+    const ImageRGB dimage = cpu.InputGradient(image, dlogits);
+    const ImageRGB dimage_gpu = gpu.InputGradient(image, dlogits);
+    EXPECT_EQ(dimage_gpu.width, image.width);
+    EXPECT_EQ(dimage_gpu.height, image.height);
+    ExpectClose(dimage_gpu.data, dimage.data, 1e-3, "input gradient");
+
+    // The device-image path computes the same thing as the host one.
+    DeviceBuffer<float> image_gpu, dimage_device(image.data.size());
+    image_gpu.Upload(image.data);
+    EXPECT_EQ(gpu.LogitsDevice(image_gpu.data(), image.width, image.height),
+              gpu.Logits(image));
+    gpu.InputGradientDevice(image_gpu.data(), image.width, image.height,
+                            dlogits, dimage_device.data());
+    std::vector<float> device_result;
+    dimage_device.Download(&device_result);
+    EXPECT_EQ(device_result, dimage_gpu.data);
+  }
+}
+
+TEST(CudaDecoderTest, ShippedDecoderMatchesCpu) {
+  WATERGS_REQUIRE_CUDA();
+  std::mt19937 rng(31);
+  Decoder cpu = Decoder::Load(kShippedDecoder, 48);
+  CudaDecoder gpu = CudaDecoder::Load(kShippedDecoder, 48);
+  ExpectDecodersAgree(cpu, gpu, 64, 48, &rng);
+}
+
+TEST(CudaDecoderTest, TinyRandomDecoderMatchesCpu) {
+  WATERGS_REQUIRE_CUDA();
+  std::mt19937 rng(37);
+  HiddenModel model(TinyConfig(), false, 5);
+  RandomizeRunningStatistics(&model, &rng);
+  Decoder cpu(&model);
+  CudaDecoder gpu(model);
+  ExpectDecodersAgree(cpu, gpu, 9, 7, &rng);
+  ExpectDecodersAgree(cpu, gpu, 1, 1, &rng);
+}
+
+TEST(CudaDecoderTest, WrongLogitGradientCountIsRefused) {
+  WATERGS_REQUIRE_CUDA();
+  HiddenModel model(TinyConfig(), false, 5);
+  CudaDecoder gpu(model);
+  std::mt19937 rng(41);
+  EXPECT_THROW(gpu.InputGradient(TestImage(4, 4, &rng), {1.f, 2.f}), Error);
+}
+
+// Needs no GPU: the weights file is read and checked before any CUDA call.
+TEST(CudaDecoderTest, TruncatedFileIsRefusedNamingIt) {
+  std::ifstream in(kShippedDecoder, std::ios::binary);
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)),
+                                std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 100u);
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("watergs_cuda_decoder_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / "decoder_48.bin").string();
+  {
+    std::ofstream out(path, std::ios::binary);
+    out.write(bytes.data(), std::streamsize(bytes.size() - 100));
+  }
+  try {
+    CudaDecoder::Load(path);
+    ADD_FAILURE() << "truncated copy was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0u) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// [n,3,h,w] in [-1,1].
+Tensor RandomCover(int n, int h, int w, std::mt19937* rng) {
+  Tensor cover(n, 3, h, w);
+  std::uniform_real_distribution<float> dist(-0.9f, 0.9f);
+  for (float& v : cover.data) v = dist(*rng);
+  return cover;
+}
+
+std::vector<float> ValuesOf(const std::vector<Parameter*>& params,
+                            const std::string& name) {
+  for (const Parameter* p : params)
+    if (p->name == name) return p->value;
+  ADD_FAILURE() << "no parameter " << name;
+  return {};
+}
+
+TEST(CudaEncoderTest, ForwardMatchesCpuInBothModes) {
+  WATERGS_REQUIRE_CUDA();
+  std::mt19937 rng(43);
+  const HiddenConfig config = TinyConfig();
+  HiddenModel model(config, true, 9);
+  RandomizeRunningStatistics(&model, &rng);
+  CudaNnContext context;
+  CudaHiddenModel gpu(&context, model);
+  const Tensor cover = RandomCover(2, 10, 9, &rng);
+  std::vector<float> message(2 * config.num_bits);
+  for (size_t i = 0; i < message.size(); ++i) message[i] = i % 3 ? 1.f : -1.f;
+  DeviceTensor cover_gpu;
+  cover_gpu.Upload(cover);
+  DeviceBuffer<float> message_gpu;
+  message_gpu.Upload(message);
+  for (bool training : {false, true}) {
+    const Tensor& wm = model.encoder->Forward(cover, message, training);
+    Tensor wm_gpu;
+    gpu.encoder->Forward(cover_gpu, message_gpu, training).Download(&wm_gpu);
+    ExpectClose(wm_gpu.data, wm.data, 1e-3,
+                training ? "watermarked (training)" : "watermarked");
+  }
+  // The training pass moved the running statistics on both.
+  HiddenModel copy(config, true, 9);
+  gpu.CopyToHost(&copy);
+  for (const char* name : {"encoder.block1.bn.running_mean",
+                           "encoder.after_concat.bn.running_var"}) {
+    ExpectClose(ValuesOf(copy.AllParameters(), name),
+                ValuesOf(model.AllParameters(), name), 1e-4, name);
+  }
+}
+
+TEST(CudaTrainStepTest, OneStepMatchesCpu) {
+  WATERGS_REQUIRE_CUDA();
+  std::mt19937 rng(47);
+  const HiddenConfig config = TinyConfig();
+  const float learning_rate = 1e-3f, image_weight = 0.7f;
+  HiddenModel model(config, true, 13);
+  CudaNnContext context;
+  CudaHiddenModel gpu(&context, model);
+  NetworkAdam adam(model.AllParameters(), learning_rate);
+  CudaAdam gpu_adam(gpu.AllParameters(), learning_rate);
+  const Tensor cover = RandomCover(3, 12, 12, &rng);
+  std::vector<float> targets(3 * config.num_bits);
+  for (size_t i = 0; i < targets.size(); ++i) targets[i] = (i * 7 % 5) < 2;
+  const std::vector<Parameter*> before = model.AllParameters();
+  std::vector<std::vector<float>> initial;
+  for (const Parameter* p : before) initial.push_back(p->value);
+
+  ImageNoise noise;
+  StepBuffers buffers;
+  std::mt19937 noise_rng(1);
+  const StepResult result =
+      TrainStep(model, adam, noise, NoiseKind::kIdentity, cover, targets,
+                image_weight, &noise_rng, &buffers);
+  DeviceTensor cover_gpu;
+  cover_gpu.Upload(cover);
+  CudaStepBuffers gpu_buffers;
+  const StepResult gpu_result = CudaTrainStep(gpu, gpu_adam, cover_gpu, targets,
+                                              image_weight, &gpu_buffers);
+  EXPECT_NEAR(gpu_result.bce, result.bce, 1e-3 * result.bce);
+  EXPECT_NEAR(gpu_result.psnr, result.psnr, 1e-3 * result.psnr);
+  EXPECT_NEAR(gpu_result.accuracy, result.accuracy, 1.0 / targets.size());
+
+  HiddenModel after(config, true, 13);
+  gpu.CopyToHost(&after);
+  const std::vector<Parameter*> gpu_params = after.AllParameters();
+  const std::vector<Parameter*> cpu_params = model.AllParameters();
+  ASSERT_EQ(gpu_params.size(), cpu_params.size());
+  for (size_t k = 0; k < cpu_params.size(); ++k) {
+    const Parameter& c = *cpu_params[k];
+    const Parameter& g = *gpu_params[k];
+    if (!c.trainable) {
+      ExpectClose(g.value, c.value, 1e-4, c.name + " (running statistic)");
+      continue;
+    }
+    double grad_scale = 0.0;
+    for (float v : c.grad)
+      grad_scale = std::max(grad_scale, double(std::abs(v)));
+    ExpectClose(g.grad, c.grad, 1e-3, c.name + " gradient");
+    // Adam moved each parameter with a clear gradient by ~lr * sign(g).
+    for (size_t i = 0; i < c.size(); ++i) {
+      if (std::abs(c.grad[i]) < 1e-2 * grad_scale || std::abs(c.grad[i]) < 1e-6)
+        continue;
+      EXPECT_NEAR(g.value[i], c.value[i],
+                  1e-2 * learning_rate + 1e-6 * std::abs(c.value[i]))
+          << c.name << " [" << i << "] after Adam";
+      EXPECT_NE(c.value[i], initial[k][i]) << c.name << " did not move";
+    }
+  }
+}
+
+}  // namespace
+}  // namespace watergs
+
+#endif  // WATERGS_WITH_CUDA

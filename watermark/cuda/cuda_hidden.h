@@ -1,0 +1,174 @@
+// The HiDDeN encoder and decoder (hidden_net.h) on the GPU, built from the
+// weights of CPU networks (same parameter order as CollectParameters), and
+// CudaDecoder: the frozen universal decoder of decoder.h (Logits,
+// InputGradient) on the GPU, loaded from the same weights file. Also one
+// training step on the device (TrainStep with the identity noise layer).
+// Parity with the CPU: tests/watermark/cuda_decoder_test.cc.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gaussian/image.h"
+#include "watermark/cuda/cuda_nn.h"
+#include "watermark/decoder_training.h"
+#include "watermark/hidden_model.h"
+
+namespace watergs {
+
+// conv3x3 + BatchNorm + ReLU keeping its activations (ConvBnRelu's twin).
+class CudaConvBnRelu {
+ public:
+  // params: conv.weight, conv.bias, bn.gamma, bn.beta, bn.running_mean,
+  // bn.running_var (ConvBnRelu::CollectParameters order). Momentum and
+  // eps are BatchNorm2d's defaults, which the CPU blocks keep.
+  CudaConvBnRelu(CudaNnContext* context, const std::vector<Parameter*>& params);
+  // x [N,in,H,W] -> output() [N,out,H,W].
+  void Forward(const DeviceTensor& x, bool training);
+  // dout (overwritten) -> dx (skipped when null).
+  void Backward(const DeviceTensor& x, DeviceTensor* dout, DeviceTensor* dx,
+                bool weight_grads, bool training);
+  const DeviceTensor& output() const { return out_; }
+  void CollectParameters(std::vector<CudaParameter*>* out);
+  // The block's layers.
+  CudaConv2d conv;
+  CudaBatchNorm2d bn;
+
+ private:
+  // Convolution output, block output (after ReLU), gradient at conv output.
+  DeviceTensor conv_out_, out_, dconv_;
+};
+
+// HiddenDecoder's twin: D(image) = Linear(GAP(CBR_L(blocks x CBR(image)))).
+class CudaHiddenDecoder {
+ public:
+  // Copies the weights of `cpu` (which may then go away).
+  CudaHiddenDecoder(CudaNnContext* context, const HiddenConfig& config,
+                    HiddenDecoder& cpu);
+  // image [N,3,H,W] -> logits [N,L,1,1].
+  const DeviceTensor& Forward(const DeviceTensor& image, bool training);
+  // dlogits [N,L,1,1] -> dimage (skipped when null); weight gradients only
+  // when weight_grads. Uses the activations of the last Forward.
+  void Backward(const DeviceTensor& dlogits, DeviceTensor* dimage,
+                bool weight_grads, bool training);
+  void CollectParameters(std::vector<CudaParameter*>* out);
+  int num_bits() const { return config_.num_bits; }
+
+ private:
+  HiddenConfig config_;
+  // decoder_blocks feature blocks, then the L-channel block.
+  std::vector<std::unique_ptr<CudaConvBnRelu>> blocks_;
+  std::unique_ptr<CudaLinear> linear_;
+  // Input of the last Forward (owned by the caller).
+  const DeviceTensor* image_ = nullptr;
+  // Activations of the last Forward and gradient scratch.
+  DeviceTensor pooled_, logits_, dpooled_, da_, db_;
+};
+
+// HiddenEncoder's twin: cover + conv1x1(CBR([message planes, features,
+// cover])), features = blocks x CBR(cover).
+class CudaHiddenEncoder {
+ public:
+  CudaHiddenEncoder(CudaNnContext* context, const HiddenConfig& config,
+                    HiddenEncoder& cpu);
+  // cover [N,3,H,W], message N*L values +-1 (device) -> watermarked.
+  const DeviceTensor& Forward(const DeviceTensor& cover,
+                              const DeviceBuffer<float>& message,
+                              bool training);
+  // dwatermarked [N,3,H,W]: adds weight gradients (cover gets none).
+  void Backward(const DeviceTensor& dwatermarked, bool training);
+  void CollectParameters(std::vector<CudaParameter*>* out);
+
+ private:
+  HiddenConfig config_;
+  std::vector<std::unique_ptr<CudaConvBnRelu>> blocks_;
+  std::unique_ptr<CudaConvBnRelu> after_concat_;
+  std::unique_ptr<CudaConv2d> final_;
+  const DeviceTensor* cover_ = nullptr;
+  DeviceTensor concat_, residual_, watermarked_, dconcat_, dblock_, dblock_in_;
+};
+
+// A HiddenModel on the device: both networks (encoder only if the CPU model
+// has one), parameters in HiddenModel::AllParameters order.
+struct CudaHiddenModel {
+  CudaHiddenModel(CudaNnContext* context, HiddenModel& cpu);
+  std::vector<CudaParameter*> AllParameters();
+  // Device values (and gradients) back into `cpu` (the same architecture).
+  void CopyToHost(HiddenModel* cpu);
+
+  // Null when the CPU model has no encoder.
+  std::unique_ptr<CudaHiddenEncoder> encoder;
+  std::unique_ptr<CudaHiddenDecoder> decoder;
+};
+
+// Reusable device buffers of CudaTrainStep.
+struct CudaStepBuffers {
+  // Message bits (0/1) and signs (+-1), logits gradient, image gradient.
+  DeviceBuffer<float> targets, signs;
+  DeviceTensor dlogits, dimage;
+  // Host copies for the step's figures.
+  Tensor host_logits, host_cover, host_watermarked;
+};
+
+// TrainStep (decoder_training.h) with the identity noise layer, on the
+// device: encoder, decoder, loss image_weight * MSE + BCE, backward through
+// both, Adam. cover [N,3,H,W] in [-1,1], targets N*L bits (0/1).
+StepResult CudaTrainStep(CudaHiddenModel& model, CudaAdam& adam,
+                         const DeviceTensor& cover,
+                         const std::vector<float>& targets, float image_weight,
+                         CudaStepBuffers* buffers);
+
+// The frozen universal decoder (Decoder's twin) on the GPU.
+class CudaDecoder {
+ public:
+  // Loads the decoder of a weights file as Decoder::Load does (same
+  // checks, same errors).
+  static CudaDecoder Load(const std::string& path, int expected_bits = 0);
+  // Copies the decoder weights of `model` (which may then go away).
+  explicit CudaDecoder(HiddenModel& model);
+  CudaDecoder(CudaDecoder&&) noexcept;
+  CudaDecoder& operator=(CudaDecoder&&) noexcept;
+  ~CudaDecoder();
+
+  // Message length L.
+  int NumBits() const;
+  // image (any size >= 1x1) -> L logits.
+  std::vector<float> Logits(const ImageRGB& image);
+  // image, dLoss/dLogits (L values) -> dLoss/dImage (same size as image).
+  // Re-runs the forward pass only when `image` differs from the last one.
+  void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
+                     ImageRGB* dimage);
+  ImageRGB InputGradient(const ImageRGB& image,
+                         const std::vector<float>& dlogits);
+
+  // Device images (HWC floats in [0,1], width * height * 3 values): the
+  // forward pass always runs. dimage_hwc gets dLoss/dImage (device, same
+  // layout).
+  std::vector<float> LogitsDevice(const float* image_hwc, int width,
+                                  int height);
+  void InputGradientDevice(const float* image_hwc, int width, int height,
+                           const std::vector<float>& dlogits,
+                           float* dimage_hwc);
+
+ private:
+  // Network input from a device HWC image, then the forward pass.
+  void ForwardDevice(const float* image_hwc, int width, int height);
+  // Backward to the network input, then to dimage_hwc.
+  void BackwardDevice(const std::vector<float>& dlogits, float* dimage_hwc);
+  // Runs the forward pass unless `image` is the cached input.
+  void ForwardIfNeeded(const ImageRGB& image);
+
+  // The handles (declared first: the network's layers point into it).
+  std::unique_ptr<CudaNnContext> context_;
+  std::unique_ptr<CudaHiddenDecoder> network_;
+  // Uploaded image (HWC), network input, gradients, image gradient (HWC).
+  DeviceBuffer<float> image_, dimage_;
+  DeviceTensor input_, dlogits_, dinput_;
+  // The host image of the last forward pass and its logits.
+  std::vector<float> cached_pixels_, logits_;
+  int cached_width_ = 0, cached_height_ = 0;
+  bool has_forward_ = false;
+};
+
+}  // namespace watergs
