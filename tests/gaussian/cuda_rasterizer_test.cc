@@ -1,0 +1,398 @@
+// Parity of the CUDA rasterizer with the CPU one (the reference): forward
+// images and every gradient group, on random scenes, several poses, crops,
+// tile borders, a stack deeper than one shared-memory batch, hard inputs,
+// an empty model and a 1x1 image. Each parity test skips (saying why)
+// without a usable GPU; the last test checks the error a GPU-less machine
+// gives instead.
+//
+// Tolerances. Both sides compute the per-Gaussian math in double and blend
+// in float with the same expressions (same exp polynomial), so images agree
+// to float rounding: max |gpu - cpu| <= 1e-4. Gradients of the blending
+// are summed in a different order (atomicAdd per warp vs per tile), so each
+// group must agree within 1e-3 of the group's largest |cpu| entry; flags
+// (visible) must agree exactly.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <string>
+
+#include "gaussian/device.h"
+#include "gaussian/error.h"
+#include "gaussian/rasterizer.h"
+#include "tests/common/cuda_test.h"
+#include "tests/gaussian/rasterizer_test_scenes.h"
+
+namespace watergs {
+namespace {
+
+using testing::RandomCamera;
+using testing::RandomScene;
+using testing::SceneSpec;
+
+constexpr double kImageTolerance = 1e-4;
+constexpr double kGradientRelTolerance = 1e-3;
+
+// A forward image and the gradients of sum(weights * image).
+struct Rendered {
+  ImageRGB image;
+  GaussianGradients grads;
+};
+
+// dL/d(image): a fixed pseudo-random pattern in [-1, 1].
+ImageRGB PatternGradient(int width, int height) {
+  ImageRGB grad(width, height);
+  std::mt19937 rng(static_cast<unsigned>(width * 7919 + height));
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (float& v : grad.data) v = u(rng);
+  return grad;
+}
+
+Rendered Render(Rasterizer& rasterizer, const GaussianModel& model,
+                const RenderCamera& cam, const RenderOptions& options,
+                bool compact_sh) {
+  Rendered out;
+  std::unique_ptr<RenderContext> context;
+  rasterizer.Forward(model, cam, options, &out.image, &context);
+  out.grads.compact_sh = compact_sh;
+  rasterizer.Backward(model, *context,
+                      PatternGradient(out.image.width, out.image.height),
+                      &out.grads);
+  return out;
+}
+
+size_t NonFinite(const std::vector<float>& v) {
+  return static_cast<size_t>(std::count_if(
+      v.begin(), v.end(), [](float x) { return !std::isfinite(x); }));
+}
+
+double MaxAbs(const std::vector<float>& v) {
+  double m = 0;
+  for (float x : v) m = std::max(m, std::fabs(double(x)));
+  return m;
+}
+
+// |gpu - cpu| <= tolerance * max |cpu| over the group, and gpu finite.
+void ExpectGroupClose(const std::string& name, const std::vector<float>& cpu,
+                      const std::vector<float>& gpu,
+                      double tolerance = kGradientRelTolerance) {
+  ASSERT_EQ(cpu.size(), gpu.size()) << name;
+  EXPECT_EQ(NonFinite(gpu), 0u) << name;
+  const double scale = MaxAbs(cpu);
+  double worst = 0;
+  size_t worst_at = 0;
+  for (size_t k = 0; k < cpu.size(); ++k) {
+    const double d = std::fabs(double(gpu[k]) - double(cpu[k]));
+    if (d > worst) worst = d, worst_at = k;
+  }
+  EXPECT_LE(worst, tolerance * scale)
+      << name << ": entry " << worst_at << " cpu " << cpu[worst_at] << " gpu "
+      << gpu[worst_at] << " (largest |cpu| " << scale << ")";
+}
+
+void ExpectImagesClose(const ImageRGB& cpu, const ImageRGB& gpu) {
+  ASSERT_EQ(cpu.width, gpu.width);
+  ASSERT_EQ(cpu.height, gpu.height);
+  ASSERT_EQ(cpu.data.size(), gpu.data.size());
+  double worst = 0;
+  size_t worst_at = 0;
+  for (size_t k = 0; k < cpu.data.size(); ++k) {
+    const double d = std::fabs(double(gpu.data[k]) - double(cpu.data[k]));
+    if (!(d <= worst)) worst = d, worst_at = k;
+  }
+  EXPECT_LE(worst, kImageTolerance)
+      << "pixel " << worst_at / 3 % cpu.width << "," << worst_at / 3 / cpu.width
+      << " channel " << worst_at % 3;
+}
+
+// Renders with both rasterizers and compares the image and every gradient.
+void ExpectParity(const GaussianModel& model, const RenderCamera& cam,
+                  const RenderOptions& options, bool compact_sh = false) {
+  auto cpu_rasterizer = MakeCpuRasterizer();
+  auto gpu_rasterizer = MakeRasterizer(Device::kCuda);
+  const Rendered cpu = Render(*cpu_rasterizer, model, cam, options, compact_sh);
+  const Rendered gpu = Render(*gpu_rasterizer, model, cam, options, compact_sh);
+  ExpectImagesClose(cpu.image, gpu.image);
+  const GaussianGradients& c = cpu.grads;
+  const GaussianGradients& g = gpu.grads;
+  ExpectGroupClose("means", c.means, g.means);
+  ExpectGroupClose("log_scales", c.log_scales, g.log_scales);
+  ExpectGroupClose("quats", c.quats, g.quats);
+  ExpectGroupClose("opacity_logits", c.opacity_logits, g.opacity_logits);
+  ExpectGroupClose("sh_dc", c.sh_dc, g.sh_dc);
+  ExpectGroupClose("sh_rest", c.sh_rest, g.sh_rest);
+  ExpectGroupClose("sh_color_grad", c.sh_color_grad, g.sh_color_grad);
+  // The view direction does not depend on the blending order at all.
+  ExpectGroupClose("sh_view_dir", c.sh_view_dir, g.sh_view_dir, 1e-6);
+  ExpectGroupClose("mean2d_grad_norm", c.mean2d_grad_norm, g.mean2d_grad_norm);
+  ExpectGroupClose("mean2d_grad_norm_ndc", c.mean2d_grad_norm_ndc,
+                   g.mean2d_grad_norm_ndc);
+  EXPECT_EQ(c.visible, g.visible);
+  EXPECT_EQ(c.sh_active_degree, g.sh_active_degree);
+  EXPECT_EQ(g.compact_sh, compact_sh);
+}
+
+// Largest |pixel - background| of an image: the scene must show something.
+double Coverage(const ImageRGB& image, const RenderOptions& options) {
+  double m = 0;
+  for (size_t k = 0; k < image.data.size(); ++k) {
+    m = std::max(m,
+                 std::fabs(double(image.data[k]) - options.background[k % 3]));
+  }
+  return m;
+}
+
+// Places Gaussian i at camera-frame point (x, y, z).
+void PlaceAt(const RenderCamera& cam, GaussianModel* m, size_t i, double x,
+             double y, double z) {
+  const Eigen::Vector3d w =
+      cam.R.transpose() * (Eigen::Vector3d(x, y, z) - cam.t);
+  for (int k = 0; k < 3; ++k) m->means[3 * i + k] = static_cast<float>(w[k]);
+}
+
+TEST(CudaRasterizer, ParityOnRandomScenesAndPoses) {
+  WATERGS_REQUIRE_CUDA();
+  RenderOptions options;
+  options.background = {0.1f, 0.3f, 0.6f};
+  for (unsigned pose = 0; pose < 4; ++pose) {
+    SCOPED_TRACE("pose " + std::to_string(pose));
+    const RenderCamera cam = RandomCamera(64, 48, 100 + pose);
+    SceneSpec spec;
+    spec.count = 60;
+    const GaussianModel model = RandomScene(cam, spec, 200 + pose);
+    auto gpu = MakeRasterizer(Device::kCuda);
+    ImageRGB image;
+    gpu->Forward(model, cam, options, &image, nullptr);
+    EXPECT_GT(Coverage(image, options), 0.1);
+    ExpectParity(model, cam, options);
+  }
+}
+
+TEST(CudaRasterizer, ParityAtLowerActiveShDegrees) {
+  WATERGS_REQUIRE_CUDA();
+  const RenderCamera cam = RandomCamera(48, 40, 7);
+  const GaussianModel model = RandomScene(cam, SceneSpec(), 8);
+  for (int degree = 0; degree <= 3; ++degree) {
+    SCOPED_TRACE("active SH degree " + std::to_string(degree));
+    RenderOptions options;
+    options.active_sh_degree = degree;
+    ExpectParity(model, cam, options);
+  }
+}
+
+TEST(CudaRasterizer, CompactShGradientsMatchCpu) {
+  WATERGS_REQUIRE_CUDA();
+  const RenderCamera cam = RandomCamera(64, 48, 9);
+  const GaussianModel model = RandomScene(cam, SceneSpec(), 10);
+  RenderOptions options;
+  options.active_sh_degree = 2;
+  ExpectParity(model, cam, options, /*compact_sh=*/true);
+}
+
+TEST(CudaRasterizer, CropRectsMatchCpu) {
+  WATERGS_REQUIRE_CUDA();
+  const RenderCamera cam = RandomCamera(80, 56, 11);
+  SceneSpec spec;
+  spec.count = 80;
+  const GaussianModel model = RandomScene(cam, spec, 12);
+  // Unaligned, tile-aligned, one row, and the last partial tile.
+  const PixelRect rects[] = {
+      {5, 7, 37, 20}, {16, 16, 32, 32}, {0, 30, 80, 1}, {64, 48, 16, 8}};
+  for (const PixelRect& rect : rects) {
+    SCOPED_TRACE("rect " + std::to_string(rect.x0) + "," +
+                 std::to_string(rect.y0) + " " + std::to_string(rect.width) +
+                 "x" + std::to_string(rect.height));
+    RenderOptions options;
+    options.rect = rect;
+    options.background = {0.5f, 0.25f, 0.f};
+    ExpectParity(model, cam, options);
+  }
+}
+
+TEST(CudaRasterizer, TileBorderGaussiansMatchCpu) {
+  WATERGS_REQUIRE_CUDA();
+  const RenderCamera cam = RandomCamera(64, 48, 13);
+  SceneSpec spec;
+  spec.count = 24;
+  spec.min_scale = 0.005, spec.max_scale = 0.05;
+  GaussianModel model = RandomScene(cam, spec, 14);
+  // Means on tile corners and edges (pixel coordinates multiple of 16), at
+  // depths where the splats are a few pixels wide.
+  for (size_t i = 0; i < model.size(); ++i) {
+    const double px = 16.0 * (1 + i % 3) + (i % 2 ? 0.0 : 0.5);
+    const double py = 16.0 * (1 + i / 3 % 2) + (i % 4 < 2 ? 0.0 : -0.5);
+    const double z = 2.0 + 0.1 * double(i);
+    PlaceAt(cam, &model, i, (px - cam.cx) / cam.fx * z,
+            (py - cam.cy) / cam.fy * z, z);
+  }
+  ExpectParity(model, cam, RenderOptions());
+  RenderOptions crop;
+  crop.rect = {16, 16, 16, 16};
+  ExpectParity(model, cam, crop);
+}
+
+TEST(CudaRasterizer, DeepTileStackMatchesCpu) {
+  WATERGS_REQUIRE_CUDA();
+  // 1500 faint Gaussians on one 16 x 16 image: the tile list spans several
+  // 256-splat shared-memory batches, forward and backward.
+  RenderCamera cam;
+  cam.width = 16, cam.height = 16;
+  cam.fx = cam.fy = 20, cam.cx = cam.cy = 8;
+  GaussianModel model;
+  model.sh_degree = 1;
+  const size_t n = 1500;
+  model.Resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    model.means[3 * i] = 0.05f * std::sin(float(i));
+    model.means[3 * i + 1] = 0.05f * std::cos(float(i));
+    model.means[3 * i + 2] = 1.f + 2.f * float(i) / n;
+    for (int k = 0; k < 3; ++k) model.log_scales[3 * i + k] = -3;
+    model.quats[4 * i] = 1;
+    model.opacity_logits[i] = i % 2 ? -5.f : -6.f;
+    model.sh_dc[3 * i] = 1;
+    model.sh_rest[i * model.sh_rest_stride() + 3 * (i % 3)] = 0.2f;
+  }
+  ExpectParity(model, cam, RenderOptions());
+}
+
+TEST(CudaRasterizer, HardCasesStayFiniteAndMatchCpu) {
+  WATERGS_REQUIRE_CUDA();
+  const RenderCamera cam = RandomCamera(64, 48, 1);
+  GaussianModel m = RandomScene(cam, SceneSpec(), 2);
+  const float inf = std::numeric_limits<float>::infinity();
+  const float denormal = std::numeric_limits<float>::denorm_min();
+  size_t i = 0;
+  // Behind the camera, on / just beyond the near plane, at the centre.
+  PlaceAt(cam, &m, i++, 0.1, 0.1, -1.0);
+  PlaceAt(cam, &m, i++, 0.0, 0.0, cam.near_plane);
+  PlaceAt(cam, &m, i++, 0.001, 0.0, cam.near_plane * 1.0001);
+  PlaceAt(cam, &m, i++, 0.0, 0.0, 0.0);
+  PlaceAt(cam, &m, i++, 40.0, -30.0, 2.0);
+  // Zero, denormal and huge scales; a needle (near-singular covariance).
+  for (float ls : {-inf, std::log(denormal), -80.f, 30.f, 88.f, inf}) {
+    for (int k = 0; k < 3; ++k) m.log_scales[3 * i + k] = ls;
+    ++i;
+  }
+  m.log_scales[3 * i] = 5, m.log_scales[3 * i + 1] = -40;
+  m.log_scales[3 * i + 2] = -40;
+  ++i;
+  // Zero-norm and denormal quaternions; opacity logits +-60.
+  for (int k = 0; k < 4; ++k) m.quats[4 * i + k] = 0;
+  ++i;
+  for (int k = 0; k < 4; ++k) m.quats[4 * i + k] = denormal;
+  ++i;
+  m.opacity_logits[i++] = 60;
+  m.opacity_logits[i++] = -60;
+  ASSERT_LE(i, m.size());
+  for (unsigned pose = 0; pose < 2; ++pose) {
+    const RenderCamera view = pose == 0 ? cam : RandomCamera(64, 48, 20);
+    auto gpu = MakeRasterizer(Device::kCuda);
+    const Rendered r = Render(*gpu, m, view, RenderOptions(), false);
+    EXPECT_EQ(NonFinite(r.image.data), 0u);
+    for (const std::vector<float>* v :
+         {&r.grads.means, &r.grads.log_scales, &r.grads.quats,
+          &r.grads.opacity_logits, &r.grads.sh_dc, &r.grads.sh_rest,
+          &r.grads.mean2d_grad_norm, &r.grads.mean2d_grad_norm_ndc}) {
+      EXPECT_EQ(NonFinite(*v), 0u);
+    }
+    ExpectParity(m, view, RenderOptions());
+  }
+}
+
+TEST(CudaRasterizer, EmptyModelRendersBackground) {
+  WATERGS_REQUIRE_CUDA();
+  const RenderCamera cam = RandomCamera(20, 10, 5);
+  GaussianModel m;
+  m.sh_degree = 2;
+  RenderOptions options;
+  options.background = {0.25f, 0.5f, 0.75f};
+  auto gpu = MakeRasterizer(Device::kCuda);
+  const Rendered r = Render(*gpu, m, cam, options, false);
+  ASSERT_EQ(r.image.data.size(), 600u);
+  for (int k = 0; k < 600; ++k) {
+    EXPECT_EQ(r.image.data[k], options.background[k % 3]);
+  }
+  EXPECT_TRUE(r.grads.means.empty());
+  EXPECT_TRUE(r.grads.visible.empty());
+}
+
+TEST(CudaRasterizer, OnePixelImageMatchesCpu) {
+  WATERGS_REQUIRE_CUDA();
+  RenderCamera cam;
+  cam.width = cam.height = 1;
+  cam.fx = cam.fy = 1, cam.cx = cam.cy = 0.5;
+  SceneSpec spec;
+  spec.count = 10;
+  spec.margin = 0;
+  ExpectParity(RandomScene(cam, spec, 6), cam, RenderOptions());
+}
+
+TEST(CudaRasterizer, ReusedBuffersAndLiveContextsStayCorrect) {
+  WATERGS_REQUIRE_CUDA();
+  // One rasterizer, models of changing size, and a context kept alive while
+  // another view renders: pooled device buffers must not leak between them.
+  auto gpu = MakeRasterizer(Device::kCuda);
+  auto cpu = MakeCpuRasterizer();
+  const RenderCamera cam_a = RandomCamera(64, 48, 30);
+  const RenderCamera cam_b = RandomCamera(48, 32, 31);
+  SceneSpec spec;
+  for (int count : {50, 20, 90}) {
+    spec.count = count;
+    const GaussianModel model = RandomScene(cam_a, spec, 40 + count);
+    std::unique_ptr<RenderContext> ctx_a, ctx_b, cpu_ctx;
+    ImageRGB image_a, image_b, cpu_image;
+    gpu->Forward(model, cam_a, RenderOptions(), &image_a, &ctx_a);
+    gpu->Forward(model, cam_b, RenderOptions(), &image_b, &ctx_b);
+    ImageRGB image_c;
+    gpu->Forward(model, cam_b, RenderOptions(), &image_c, nullptr);
+    GaussianGradients grads_a, cpu_grads;
+    gpu->Backward(model, *ctx_a, PatternGradient(64, 48), &grads_a);
+    cpu->Forward(model, cam_a, RenderOptions(), &cpu_image, &cpu_ctx);
+    cpu->Backward(model, *cpu_ctx, PatternGradient(64, 48), &cpu_grads);
+    ExpectImagesClose(cpu_image, image_a);
+    EXPECT_EQ(image_b.data, image_c.data);
+    ExpectGroupClose("means", cpu_grads.means, grads_a.means);
+    ExpectGroupClose("sh_rest", cpu_grads.sh_rest, grads_a.sh_rest);
+    EXPECT_EQ(cpu_grads.visible, grads_a.visible);
+  }
+}
+
+TEST(CudaRasterizer, BadRectAndCameraGiveErrors) {
+  WATERGS_REQUIRE_CUDA();
+  auto gpu = MakeRasterizer(Device::kCuda);
+  const RenderCamera cam = RandomCamera(32, 32, 3);
+  const GaussianModel model = RandomScene(cam, SceneSpec(), 4);
+  ImageRGB image;
+  RenderOptions outside;
+  outside.rect = {20, 0, 16, 8};
+  EXPECT_THROW(gpu->Forward(model, cam, outside, &image, nullptr), Error);
+  RenderCamera empty = cam;
+  empty.width = 0;
+  EXPECT_THROW(gpu->Forward(model, empty, RenderOptions(), &image, nullptr),
+               Error);
+  GaussianModel broken = model;
+  broken.sh_rest.pop_back();
+  EXPECT_THROW(gpu->Forward(broken, cam, RenderOptions(), &image, nullptr),
+               Error);
+}
+
+// Runs everywhere: without a usable GPU, asking for the CUDA rasterizer is a
+// one-line Error, not a crash.
+TEST(CudaRasterizer, WithoutGpuMakeRasterizerGivesOneLineError) {
+  std::string why;
+  if (CudaAvailable(&why)) GTEST_SKIP() << "a GPU is visible";
+  try {
+    MakeRasterizer(Device::kCuda);
+    FAIL() << "MakeRasterizer(kCuda) succeeded without a GPU";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_FALSE(message.empty());
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    EXPECT_NE(message.find("cuda"), std::string::npos) << message;
+  }
+}
+
+}  // namespace
+}  // namespace watergs
