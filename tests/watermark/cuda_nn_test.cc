@@ -154,6 +154,8 @@ TEST(CudaConv2dPlanTest, SeveralInputSizesOnOneLayer) {
   }
 }
 
+// N * H * W >= 3 in training: with two values per channel the normalised
+// output is +-1 whatever x is, so dx is 0 and only rounding noise compares.
 struct BnCase {
   int n, c, h, w;
 };
@@ -236,7 +238,7 @@ TEST_P(CudaBatchNormTest, InferenceModeMatchesCpu) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Shapes, CudaBatchNormTest,
-                         ::testing::Values(BnCase{2, 3, 1, 1},  // 1x1, N>1
+                         ::testing::Values(BnCase{3, 3, 1, 1},  // 1x1, N>1
                                            BnCase{1, 4, 5, 7},  // N=1
                                            BnCase{3, 5, 4, 4},  // N>1
                                            BnCase{2, 64, 9, 8}));
