@@ -284,14 +284,15 @@ StepResult CudaTrainStep(CudaHiddenModel& model, CudaAdam& adam,
   return result;
 }
 
-CudaDecoder CudaDecoder::Load(const std::string& path, int expected_bits) {
+CudaDecoder CudaDecoder::Load(const std::string& path, int expected_bits,
+                              bool allow_tf32) {
   std::unique_ptr<HiddenModel> model =
       LoadHiddenModel(path, false, expected_bits);
-  return CudaDecoder(*model);
+  return CudaDecoder(*model, allow_tf32);
 }
 
-CudaDecoder::CudaDecoder(HiddenModel& model)
-    : context_(std::make_unique<CudaNnContext>(false)),
+CudaDecoder::CudaDecoder(HiddenModel& model, bool allow_tf32)
+    : context_(std::make_unique<CudaNnContext>(allow_tf32)),
       network_(std::make_unique<CudaHiddenDecoder>(context_.get(), model.config,
                                                    *model.decoder)) {}
 CudaDecoder::CudaDecoder(CudaDecoder&&) noexcept = default;

@@ -123,10 +123,12 @@ StepResult CudaTrainStep(CudaHiddenModel& model, CudaAdam& adam,
 class CudaDecoder {
  public:
   // Loads the decoder of a weights file as Decoder::Load does (same
-  // checks, same errors).
-  static CudaDecoder Load(const std::string& path, int expected_bits = 0);
+  // checks, same errors). allow_tf32: see CudaNnContext (faster, ~1e-3
+  // relative error; the parity tests use false).
+  static CudaDecoder Load(const std::string& path, int expected_bits = 0,
+                          bool allow_tf32 = false);
   // Copies the decoder weights of `model` (which may then go away).
-  explicit CudaDecoder(HiddenModel& model);
+  explicit CudaDecoder(HiddenModel& model, bool allow_tf32 = false);
   CudaDecoder(CudaDecoder&&) noexcept;
   CudaDecoder& operator=(CudaDecoder&&) noexcept;
   ~CudaDecoder();

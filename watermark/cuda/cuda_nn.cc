@@ -1,6 +1,7 @@
 // GPU neural-network layers through cuDNN and cuBLAS (see cuda_nn.h).
 #include "watermark/cuda/cuda_nn.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "gaussian/cuda/cuda_check.h"
@@ -164,49 +165,89 @@ CudaConv2d::Plan& CudaConv2d::PlanFor(const DeviceTensor& x) {
   auto plan = std::make_unique<Plan>();
   plan->x.Set(x.n, in_, x.h, x.w);
   plan->y.Set(x.n, out_, x.h, x.w);
-  cudnnHandle_t handle = context_->cudnn();
-  const bool tf32 = context_->allow_tf32();
-  const size_t limit = context_->workspace_limit;
-  // Queried under the math type the algorithm may use: FMA only (no TF32)
-  // unless allowed; each result carries the math type it was rated with.
-  conv_.SetMathType(tf32 ? CUDNN_DEFAULT_MATH : CUDNN_FMA_MATH);
+  ChooseForward(plan.get());
+  ChooseBackwardData(plan.get());
+  ChooseBackwardFilter(plan.get());
+  slot = std::move(plan);
+  return *slot;
+}
 
+// Algorithms are queried under the math type they may use: FMA only (no
+// TF32) unless the context allows TF32; each result carries the math type it
+// was rated with, which is set again before each call (FMA whenever TF32 is
+// not allowed). The heuristic's workspace estimate may be short, so the
+// exact size is asked for too.
+cudnnMathType_t CudaConv2d::QueryMath() const {
+  return context_->allow_tf32() ? CUDNN_DEFAULT_MATH : CUDNN_FMA_MATH;
+}
+
+cudnnMathType_t CudaConv2d::CallMath(cudnnMathType_t rated) const {
+  return context_->allow_tf32() ? rated : CUDNN_FMA_MATH;
+}
+
+void CudaConv2d::ChooseForward(Plan* plan) {
+  cudnnHandle_t handle = context_->cudnn();
   int max_count = 0, count = 0;
+  conv_.SetMathType(QueryMath());
   WATERGS_CUDNN_CHECK(
       cudnnGetConvolutionForwardAlgorithmMaxCount(handle, &max_count));
-  std::vector<cudnnConvolutionFwdAlgoPerf_t> forward(std::max(max_count, 1));
+  std::vector<cudnnConvolutionFwdAlgoPerf_t> perfs(std::max(max_count, 1));
   WATERGS_CUDNN_CHECK(cudnnGetConvolutionForwardAlgorithm_v7(
       handle, plan->x.get(), filter_.get(), conv_.get(), plan->y.get(),
-      int(forward.size()), &count, forward.data()));
-  const auto& f = PickAlgorithm(forward, count, tf32, limit, "forward");
-  plan->forward_algo = f.algo;
-  plan->forward_math = f.mathType;
-  plan->forward_bytes = f.memory;
+      int(perfs.size()), &count, perfs.data()));
+  const auto& best = PickAlgorithm(perfs, count, context_->allow_tf32(),
+                                   context_->workspace_limit, "forward");
+  plan->forward_algo = best.algo;
+  plan->forward_math = CallMath(best.mathType);
+  conv_.SetMathType(plan->forward_math);
+  WATERGS_CUDNN_CHECK(cudnnGetConvolutionForwardWorkspaceSize(
+      handle, plan->x.get(), filter_.get(), conv_.get(), plan->y.get(),
+      best.algo, &plan->forward_bytes));
+  plan->forward_bytes = std::max(plan->forward_bytes, best.memory);
+}
 
+void CudaConv2d::ChooseBackwardData(Plan* plan) {
+  cudnnHandle_t handle = context_->cudnn();
+  int max_count = 0, count = 0;
+  conv_.SetMathType(QueryMath());
   WATERGS_CUDNN_CHECK(
       cudnnGetConvolutionBackwardDataAlgorithmMaxCount(handle, &max_count));
-  std::vector<cudnnConvolutionBwdDataAlgoPerf_t> data(std::max(max_count, 1));
+  std::vector<cudnnConvolutionBwdDataAlgoPerf_t> perfs(std::max(max_count, 1));
   WATERGS_CUDNN_CHECK(cudnnGetConvolutionBackwardDataAlgorithm_v7(
       handle, filter_.get(), plan->y.get(), conv_.get(), plan->x.get(),
-      int(data.size()), &count, data.data()));
-  const auto& d = PickAlgorithm(data, count, tf32, limit, "backward-data");
-  plan->data_algo = d.algo;
-  plan->data_math = d.mathType;
-  plan->data_bytes = d.memory;
+      int(perfs.size()), &count, perfs.data()));
+  const auto& best = PickAlgorithm(perfs, count, context_->allow_tf32(),
+                                   context_->workspace_limit, "backward-data");
+  plan->data_algo = best.algo;
+  plan->data_math = CallMath(best.mathType);
+  conv_.SetMathType(plan->data_math);
+  WATERGS_CUDNN_CHECK(cudnnGetConvolutionBackwardDataWorkspaceSize(
+      handle, filter_.get(), plan->y.get(), conv_.get(), plan->x.get(),
+      best.algo, &plan->data_bytes));
+  plan->data_bytes = std::max(plan->data_bytes, best.memory);
+}
 
+void CudaConv2d::ChooseBackwardFilter(Plan* plan) {
+  cudnnHandle_t handle = context_->cudnn();
+  int max_count = 0, count = 0;
+  conv_.SetMathType(QueryMath());
   WATERGS_CUDNN_CHECK(
       cudnnGetConvolutionBackwardFilterAlgorithmMaxCount(handle, &max_count));
-  std::vector<cudnnConvolutionBwdFilterAlgoPerf_t> filter(
+  std::vector<cudnnConvolutionBwdFilterAlgoPerf_t> perfs(
       std::max(max_count, 1));
   WATERGS_CUDNN_CHECK(cudnnGetConvolutionBackwardFilterAlgorithm_v7(
       handle, plan->x.get(), plan->y.get(), conv_.get(), filter_.get(),
-      int(filter.size()), &count, filter.data()));
-  const auto& g = PickAlgorithm(filter, count, tf32, limit, "backward-filter");
-  plan->filter_algo = g.algo;
-  plan->filter_math = g.mathType;
-  plan->filter_bytes = g.memory;
-  slot = std::move(plan);
-  return *slot;
+      int(perfs.size()), &count, perfs.data()));
+  const auto& best =
+      PickAlgorithm(perfs, count, context_->allow_tf32(),
+                    context_->workspace_limit, "backward-filter");
+  plan->filter_algo = best.algo;
+  plan->filter_math = CallMath(best.mathType);
+  conv_.SetMathType(plan->filter_math);
+  WATERGS_CUDNN_CHECK(cudnnGetConvolutionBackwardFilterWorkspaceSize(
+      handle, plan->x.get(), plan->y.get(), conv_.get(), filter_.get(),
+      best.algo, &plan->filter_bytes));
+  plan->filter_bytes = std::max(plan->filter_bytes, best.memory);
 }
 
 void CudaConv2d::Forward(const DeviceTensor& x, DeviceTensor* y) {

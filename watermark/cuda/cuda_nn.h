@@ -189,6 +189,13 @@ class CudaConv2d {
   };
   // The plan for x's shape, made (algorithms chosen) on first use.
   Plan& PlanFor(const DeviceTensor& x);
+  // Each direction's algorithm, math type and workspace size for a plan.
+  void ChooseForward(Plan* plan);
+  void ChooseBackwardData(Plan* plan);
+  void ChooseBackwardFilter(Plan* plan);
+  // Math type to query algorithms under, and to run one rated `rated` with.
+  cudnnMathType_t QueryMath() const;
+  cudnnMathType_t CallMath(cudnnMathType_t rated) const;
 
   CudaNnContext* context_;
   int in_, out_, kernel_;
