@@ -149,6 +149,7 @@ void LaunchTileRanges(const uint64_t* sorted_keys, size_t entries,
 // Blends each tile's depth-ordered list into `rect` (one 16 x 16 block per
 // tile of `render_tiles`). image: rect.height x rect.width x 3; final_T and
 // n_contrib (1 + list position of the last contributor): one per pixel.
+// background: host array of 3 floats (passed to the kernel by value).
 void LaunchRasterizeForward(const DeviceSplat* splats,
                             const uint32_t* sorted_ids, const uint32_t* ranges,
                             TileRect render_tiles, PixelBox rect,
