@@ -1,9 +1,10 @@
 // Parity of the GPU HiDDeN networks (watermark/cuda/cuda_hidden.h) with the
 // CPU ones: CudaDecoder's logits and input gradients against Decoder's on
 // the shipped decoder and on a tiny random model, the encoder's forward
-// pass, and one training step (forward, backward, Adam). GPU tests skip
-// without a GPU; the file-refusal test needs none (the file is checked
-// before any CUDA call).
+// pass, one training step (forward, backward, Adam) under the identity and
+// three host noise layers (cuda_decoder_training.h), and the trainer's state
+// round trip. GPU tests skip without a GPU; the file-refusal test needs none
+// (the file is checked before any CUDA call).
 //
 // Tolerances, relative to the largest magnitude of the CPU values compared:
 // 1e-3 through whole networks (8 convolutions, each ~1e-5 relative with
@@ -29,6 +30,7 @@
 
 #include "gaussian/error.h"
 #include "tests/common/cuda_test.h"
+#include "watermark/cuda/cuda_decoder_training.h"
 #include "watermark/cuda/cuda_hidden.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"
@@ -239,40 +241,40 @@ TEST(CudaEncoderTest, ForwardMatchesCpuInBothModes) {
   }
 }
 
-TEST(CudaTrainStepTest, OneStepMatchesCpu) {
+class CudaTrainStepTest : public ::testing::TestWithParam<NoiseKind> {};
+
+// One TrainStep on the CPU and one CudaDecoderTrainer step from the same
+// weights, batch, message and noise draw.
+TEST_P(CudaTrainStepTest, OneStepMatchesCpu) {
   WATERGS_REQUIRE_CUDA();
+  const NoiseKind kind = GetParam();
   std::mt19937 rng(47);
   const HiddenConfig config = TinyConfig();
   const float learning_rate = 1e-3f, image_weight = 0.7f;
   HiddenModel model(config, true, 13);
-  CudaNnContext context;
-  CudaHiddenModel gpu(&context, model);
   NetworkAdam adam(model.AllParameters(), learning_rate);
-  CudaAdam gpu_adam(gpu.AllParameters(), learning_rate);
+  CudaDecoderTrainer trainer(model, adam);
   const Tensor cover = RandomCover(3, 12, 12, &rng);
   std::vector<float> targets(3 * config.num_bits);
   for (size_t i = 0; i < targets.size(); ++i) targets[i] = (i * 7 % 5) < 2;
-  const std::vector<Parameter*> before = model.AllParameters();
   std::vector<std::vector<float>> initial;
-  for (const Parameter* p : before) initial.push_back(p->value);
+  for (const Parameter* p : model.AllParameters()) initial.push_back(p->value);
 
-  ImageNoise noise;
+  ImageNoise noise, gpu_noise;
   StepBuffers buffers;
-  std::mt19937 noise_rng(1);
-  const StepResult result =
-      TrainStep(model, adam, noise, NoiseKind::kIdentity, cover, targets,
-                image_weight, &noise_rng, &buffers);
-  DeviceTensor cover_gpu;
-  cover_gpu.Upload(cover);
-  CudaStepBuffers gpu_buffers;
-  const StepResult gpu_result = CudaTrainStep(gpu, gpu_adam, cover_gpu, targets,
-                                              image_weight, &gpu_buffers);
+  std::mt19937 noise_rng(1), gpu_noise_rng(1);
+  const StepResult result = TrainStep(model, adam, noise, kind, cover, targets,
+                                      image_weight, &noise_rng, &buffers);
+  const StepResult gpu_result = trainer.Step(gpu_noise, kind, cover, targets,
+                                             image_weight, &gpu_noise_rng);
   EXPECT_NEAR(gpu_result.bce, result.bce, 1e-3 * result.bce);
   EXPECT_NEAR(gpu_result.psnr, result.psnr, 1e-3 * result.psnr);
   EXPECT_NEAR(gpu_result.accuracy, result.accuracy, 1.0 / targets.size());
 
   HiddenModel after(config, true, 13);
-  gpu.CopyToHost(&after);
+  NetworkAdam adam_after(after.AllParameters(), learning_rate);
+  trainer.CopyToHost(&after, &adam_after);
+  EXPECT_EQ(adam_after.step, adam.step);
   const std::vector<Parameter*> gpu_params = after.AllParameters();
   const std::vector<Parameter*> cpu_params = model.AllParameters();
   ASSERT_EQ(gpu_params.size(), cpu_params.size());
@@ -300,6 +302,43 @@ TEST(CudaTrainStepTest, OneStepMatchesCpu) {
       EXPECT_NE(c.value[i], initial[k][i]) << c.name << " did not move";
     }
   }
+}
+
+INSTANTIATE_TEST_SUITE_P(Noise, CudaTrainStepTest,
+                         ::testing::Values(NoiseKind::kIdentity,
+                                           NoiseKind::kCrop,
+                                           NoiseKind::kDropout,
+                                           NoiseKind::kBlur));
+
+// Weights, running statistics and Adam state survive the trip to the device
+// and back unchanged (what a checkpoint or validation in a GPU run relies
+// on).
+TEST(CudaDecoderTrainerTest, StateRoundTripIsExact) {
+  WATERGS_REQUIRE_CUDA();
+  std::mt19937 rng(53);
+  const HiddenConfig config = TinyConfig();
+  HiddenModel model(config, true, 17);
+  RandomizeRunningStatistics(&model, &rng);
+  NetworkAdam adam(model.AllParameters(), 2e-3f);
+  ImageNoise noise;
+  StepBuffers buffers;
+  std::vector<float> targets(2 * config.num_bits, 1.f);
+  TrainStep(model, adam, noise, NoiseKind::kIdentity,
+            RandomCover(2, 8, 8, &rng), targets, 0.5f, &rng, &buffers);
+  CudaDecoderTrainer trainer(model, adam);
+  HiddenModel copy(config, true, 99);
+  NetworkAdam copy_adam(copy.AllParameters(), 1.f);
+  trainer.CopyToHost(&copy, &copy_adam);
+  const std::vector<Parameter*> a = model.AllParameters();
+  const std::vector<Parameter*> b = copy.AllParameters();
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(b[k]->value, a[k]->value) << a[k]->name;
+    EXPECT_EQ(copy_adam.m[k], adam.m[k]) << a[k]->name;
+    EXPECT_EQ(copy_adam.v[k], adam.v[k]) << a[k]->name;
+  }
+  EXPECT_EQ(copy_adam.step, adam.step);
+  EXPECT_EQ(copy_adam.learning_rate, adam.learning_rate);
 }
 
 }  // namespace

@@ -52,26 +52,6 @@ const BatchNorm2d& DefaultBatchNorm() {
   return defaults;
 }
 
-// As decoder_training.cc: fraction of logits whose sign matches the bit.
-double BitAccuracy(const Tensor& logits, const std::vector<float>& targets) {
-  size_t correct = 0;
-  for (size_t i = 0; i < logits.size(); ++i)
-    correct += (logits.data[i] > 0.f) == (targets[i] > 0.5f);
-  return double(correct) / double(logits.size());
-}
-
-// As decoder_training.cc: PSNR of [-1,1] batches seen as [0,1] images.
-double BatchPsnr(const Tensor& cover, const Tensor& watermarked) {
-  double sum = 0.0;
-  for (size_t i = 0; i < cover.size(); ++i) {
-    const double d =
-        (std::clamp(watermarked.data[i], -1.f, 1.f) - cover.data[i]) * 0.5;
-    sum += d * d;
-  }
-  const double mse = std::max(sum / double(cover.size()), 1e-12);
-  return -10.0 * std::log10(mse);
-}
-
 }  // namespace
 
 CudaConvBnRelu::CudaConvBnRelu(CudaNnContext* context,
@@ -254,34 +234,6 @@ void CudaHiddenModel::CopyToHost(HiddenModel* cpu) {
            device[i]->name + " was expected");
     device[i]->CopyToHost(host[i]);
   }
-}
-
-StepResult CudaTrainStep(CudaHiddenModel& model, CudaAdam& adam,
-                         const DeviceTensor& cover,
-                         const std::vector<float>& targets, float image_weight,
-                         CudaStepBuffers* buf) {
-  if (!model.encoder) Fail("CudaTrainStep: the model has no encoder");
-  std::vector<float> signs(targets.size());
-  for (size_t i = 0; i < targets.size(); ++i) signs[i] = 2.f * targets[i] - 1.f;
-  buf->targets.Upload(targets);
-  buf->signs.Upload(signs);
-  adam.ZeroGrad();
-  const DeviceTensor& watermarked =
-      model.encoder->Forward(cover, buf->signs, true);
-  // Identity noise: the decoder reads the watermarked batch itself.
-  const DeviceTensor& logits = model.decoder->Forward(watermarked, true);
-  StepResult result;
-  result.bce = CudaBceWithLogits(logits, buf->targets, &buf->dlogits);
-  logits.Download(&buf->host_logits);
-  cover.Download(&buf->host_cover);
-  watermarked.Download(&buf->host_watermarked);
-  result.accuracy = BitAccuracy(buf->host_logits, targets);
-  result.psnr = BatchPsnr(buf->host_cover, buf->host_watermarked);
-  model.decoder->Backward(buf->dlogits, &buf->dimage, true, true);
-  CudaAddMseGradient(watermarked, cover, image_weight, &buf->dimage);
-  model.encoder->Backward(buf->dimage, true);
-  adam.Step();
-  return result;
 }
 
 CudaDecoder CudaDecoder::Load(const std::string& path, int expected_bits,

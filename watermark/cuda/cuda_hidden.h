@@ -1,9 +1,9 @@
 // The HiDDeN encoder and decoder (hidden_net.h) on the GPU, built from the
 // weights of CPU networks (same parameter order as CollectParameters), and
 // CudaDecoder: the frozen universal decoder of decoder.h (Logits,
-// InputGradient) on the GPU, loaded from the same weights file. Also one
-// training step on the device (TrainStep with the identity noise layer).
-// Parity with the CPU: tests/watermark/cuda_decoder_test.cc.
+// InputGradient) on the GPU, loaded from the same weights file (training:
+// cuda_decoder_training.h). Parity with the CPU:
+// tests/watermark/cuda_decoder_test.cc.
 #pragma once
 
 #include <memory>
@@ -12,7 +12,6 @@
 
 #include "gaussian/image.h"
 #include "watermark/cuda/cuda_nn.h"
-#include "watermark/decoder_training.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {
@@ -101,23 +100,6 @@ struct CudaHiddenModel {
   std::unique_ptr<CudaHiddenEncoder> encoder;
   std::unique_ptr<CudaHiddenDecoder> decoder;
 };
-
-// Reusable device buffers of CudaTrainStep.
-struct CudaStepBuffers {
-  // Message bits (0/1) and signs (+-1), logits gradient, image gradient.
-  DeviceBuffer<float> targets, signs;
-  DeviceTensor dlogits, dimage;
-  // Host copies for the step's figures.
-  Tensor host_logits, host_cover, host_watermarked;
-};
-
-// TrainStep (decoder_training.h) with the identity noise layer, on the
-// device: encoder, decoder, loss image_weight * MSE + BCE, backward through
-// both, Adam. cover [N,3,H,W] in [-1,1], targets N*L bits (0/1).
-StepResult CudaTrainStep(CudaHiddenModel& model, CudaAdam& adam,
-                         const DeviceTensor& cover,
-                         const std::vector<float>& targets, float image_weight,
-                         CudaStepBuffers* buffers);
 
 // The frozen universal decoder (Decoder's twin) on the GPU.
 class CudaDecoder {

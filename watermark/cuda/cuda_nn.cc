@@ -524,4 +524,30 @@ void CudaAdam::Step() {
   }
 }
 
+void CudaAdam::CopyFrom(const NetworkAdam& host) {
+  if (host.m.size() != params_.size())
+    Fail("CudaAdam: the host optimiser has " + std::to_string(host.m.size()) +
+         " parameters, the device one " + std::to_string(params_.size()));
+  for (size_t i = 0; i < params_.size(); ++i) {
+    if (host.m[i].size() != m[i].size() || host.v[i].size() != v[i].size())
+      Fail("CudaAdam: moments of " + params_[i]->name + " differ in size");
+    m[i].Upload(host.m[i]);
+    v[i].Upload(host.v[i]);
+  }
+  learning_rate = host.learning_rate;
+  step = host.step;
+}
+
+void CudaAdam::CopyToHost(NetworkAdam* host) const {
+  if (host->m.size() != params_.size())
+    Fail("CudaAdam: the host optimiser has " + std::to_string(host->m.size()) +
+         " parameters, the device one " + std::to_string(params_.size()));
+  for (size_t i = 0; i < params_.size(); ++i) {
+    m[i].Download(&host->m[i]);
+    v[i].Download(&host->v[i]);
+  }
+  host->learning_rate = learning_rate;
+  host->step = step;
+}
+
 }  // namespace watergs

@@ -293,6 +293,10 @@ class CudaAdam {
   void ZeroGrad();
   // One update from the accumulated gradients.
   void Step();
+  // Learning rate, step count and moments from / to a NetworkAdam over the
+  // same parameters in the same order (checkpoints, resume, validation).
+  void CopyFrom(const NetworkAdam& host);
+  void CopyToHost(NetworkAdam* host) const;
   // Step size.
   float learning_rate;
   // Steps taken (for bias correction); first and second moments per param.
