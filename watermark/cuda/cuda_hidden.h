@@ -58,6 +58,7 @@ class CudaHiddenDecoder {
   HiddenConfig config_;
   // decoder_blocks feature blocks, then the L-channel block.
   std::vector<std::unique_ptr<CudaConvBnRelu>> blocks_;
+  // Linear(L, L) after global average pooling.
   std::unique_ptr<CudaLinear> linear_;
   // Input of the last Forward (owned by the caller).
   const DeviceTensor* image_ = nullptr;
@@ -81,10 +82,15 @@ class CudaHiddenEncoder {
 
  private:
   HiddenConfig config_;
+  // Feature blocks on the cover.
   std::vector<std::unique_ptr<CudaConvBnRelu>> blocks_;
+  // Block on [message planes, features, cover].
   std::unique_ptr<CudaConvBnRelu> after_concat_;
+  // 1x1 convolution to the 3-channel residual.
   std::unique_ptr<CudaConv2d> final_;
+  // Input of the last Forward (owned by the caller).
   const DeviceTensor* cover_ = nullptr;
+  // Activations of the last Forward and gradient scratch.
   DeviceTensor concat_, residual_, watermarked_, dconcat_, dblock_, dblock_in_;
 };
 
@@ -98,6 +104,7 @@ struct CudaHiddenModel {
 
   // Null when the CPU model has no encoder.
   std::unique_ptr<CudaHiddenEncoder> encoder;
+  // Always present.
   std::unique_ptr<CudaHiddenDecoder> decoder;
 };
 
@@ -151,6 +158,7 @@ class CudaDecoder {
   DeviceTensor input_, dlogits_, dinput_;
   // The host image of the last forward pass and its logits.
   std::vector<float> cached_pixels_, logits_;
+  // Size of the cached image; whether the activations are of it.
   int cached_width_ = 0, cached_height_ = 0;
   bool has_forward_ = false;
 };

@@ -66,9 +66,12 @@ class CudaNnContext {
   size_t workspace_limit = size_t(1) << 30;
 
  private:
+  // Owned handles (default stream).
   cudnnHandle_t cudnn_ = nullptr;
   cublasHandle_t cublas_ = nullptr;
+  // Whether TF32 tensor-core math may be used.
   bool allow_tf32_;
+  // The shared convolution workspace.
   DeviceBuffer<unsigned char> workspace_;
 };
 
@@ -197,6 +200,7 @@ class CudaConv2d {
   cudnnMathType_t QueryMath() const;
   cudnnMathType_t CallMath(cudnnMathType_t rated) const;
 
+  // Handles and workspace (not owned); layer shape.
   CudaNnContext* context_;
   int in_, out_, kernel_;
   FilterDescriptor filter_;
@@ -229,6 +233,7 @@ class CudaBatchNorm2d {
   float momentum, eps;
 
  private:
+  // Handles (not owned); number of channels.
   CudaNnContext* context_;
   int channels_;
   // x's shape, and [1, C, 1, 1] for the per-channel tensors.
@@ -268,6 +273,7 @@ class CudaLinear {
   CudaParameter weight, bias;
 
  private:
+  // Handles (not owned); features in and out.
   CudaNnContext* context_;
   int in_, out_;
 };
@@ -304,6 +310,7 @@ class CudaAdam {
   std::vector<DeviceBuffer<float>> m, v;
 
  private:
+  // The optimised parameters (not owned), in moment order.
   std::vector<CudaParameter*> params_;
 };
 
