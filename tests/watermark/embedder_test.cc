@@ -9,7 +9,10 @@
 #include <cmath>
 #include <random>
 
+#include "gaussian/device.h"
 #include "gaussian/error.h"
+#include "tests/common/backend_parity.h"
+#include "tests/common/cuda_test.h"
 #include "tests/common/look_at.h"
 #include "watermark/hidden_model.h"
 
@@ -321,6 +324,32 @@ TEST(Embedder, RefusesAMessageOfTheWrongLength) {
   EXPECT_THROW(Embedder(DefaultEmbedOptions(1), s.views, s.train, s.model, 3.0,
                         &decoder, RandomBits(9, 1), MakeCpuRasterizer()),
                Error);
+}
+
+// Embedding steps with the CUDA rasterizer equal the CPU embedder's (crops,
+// a distortion layer, the decoder's input gradient through the render).
+TEST(EmbedderCuda, StepsMatchTheCpuEmbedder) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  Decoder decoder(&net);
+  EmbedOptions o = DefaultEmbedOptions(3);
+  o.crop_size = 16;
+  o.densify = false;
+  o.distortions = ParseDistortionList("gn:0.01");
+  o.seed = 4;
+  const Bits message = RandomBits(16, 9);
+  Embedder cpu(o, s.views, s.train, s.model, 3.0, &decoder, message,
+               MakeCpuRasterizer());
+  Embedder gpu(o, s.views, s.train, s.model, 3.0, &decoder, message,
+               MakeRasterizer(Device::kCuda));
+  for (int i = 0; i < 3; ++i) {
+    const EmbedStepStats a = cpu.Step(), b = gpu.Step();
+    EXPECT_NEAR(a.bce, b.bce, 1e-4 * (1 + a.bce));
+    EXPECT_NEAR(a.image.total, b.image.total, 1e-5 * (1 + a.image.total));
+  }
+  testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.0, 3);
 }
 
 }  // namespace
