@@ -4,19 +4,36 @@
 // run; and training throughput (images/s) of the default configuration
 // (crop 128, batch 8, identity noise, 48 bits). Medians of repeated runs.
 //
-// Usage: decoder_benchmark [weights.bin] [repeats=5]
+// --device cuda instead times the GPU path (watermark/cuda/): CudaDecoder
+// Logits and InputGradient at 128x128 and 256x256, and CudaDecoderTrainer
+// steps at the default configuration and at the paper's (crop 256, batch
+// 16), each in float32 and with TF32 tensor cores allowed; first it times
+// the host work of a GPU training step (batch assembly, host noise layers),
+// which needs no GPU. Without a usable GPU it says why and exits 0.
+//
+// Usage: decoder_benchmark [--device cpu|cuda] [weights.bin] [repeats=5]
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "benchmarks/benchmark_util.h"
+#include "gaussian/device.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"
+
+#ifdef WATERGS_WITH_CUDA
+#include <cuda_runtime.h>
+
+#include "gaussian/cuda/cuda_device.h"
+#include "watermark/cuda/cuda_decoder_training.h"
+#include "watermark/cuda/cuda_hidden.h"
+#endif
 
 namespace {
 
@@ -24,12 +41,9 @@ using watergs::bench::MedianSeconds;
 
 using Clock = std::chrono::steady_clock;
 
-}  // namespace
-
-int main(int argc, char** argv) {
+// CPU timings (the README's figures).
+int RunCpu(const std::string& weights, int repeats) {
   using namespace watergs;
-  const std::string weights = argc > 1 ? argv[1] : "";
-  const int repeats = argc > 2 ? std::atoi(argv[2]) : 5;
   HiddenConfig config;
   std::unique_ptr<HiddenModel> model =
       weights.empty() ? std::make_unique<HiddenModel>(config, true, 1)
@@ -123,4 +137,158 @@ int main(int argc, char** argv) {
         crop, batch, seconds, batch / seconds);
   }
   return 0;
+}
+
+// A [batch,3,crop,crop] cover in [-1,1] and random message bits.
+void RandomBatch(int batch, int crop, int bits, std::mt19937* rng,
+                 watergs::Tensor* cover, std::vector<float>* targets) {
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  cover->Resize(batch, 3, crop, crop);
+  for (float& v : cover->data) v = 2.f * unit(*rng) - 1.f;
+  targets->resize(size_t(batch) * bits);
+  for (float& t : *targets) t = unit(*rng) < 0.5f ? 0.f : 1.f;
+}
+
+// Host work of one GPU training step at crop 256, batch 16 (runs
+// anywhere): crop assembly from decoded photos, and each host noise layer's
+// forward + backward (CudaTrainStep runs every layer but identity on the
+// CPU's ImageNoise).
+void HostWorkPerStep(int repeats) {
+  using namespace watergs;
+  const int batch = 16, crop = 256;
+  std::mt19937 rng(5);
+  cv::Mat photo(384, 614, CV_8UC3);
+  cv::randu(photo, cv::Scalar::all(0), cv::Scalar::all(255));
+  Tensor cover(batch, 3, crop, crop), watermarked, noised, dimage;
+  const double assembly = MedianSeconds(repeats, [&] {
+    for (int b = 0; b < batch; ++b)
+      PhotoToTensor(photo, 7 * b % (photo.cols - crop), 3 * b, b, &cover);
+  });
+  std::printf(
+      "host work per step (crop %d, batch %d): "
+      "batch assembly %.1f ms",
+      crop, batch, 1e3 * assembly);
+  std::vector<float> unused;
+  RandomBatch(batch, crop, 1, &rng, &watermarked, &unused);
+  ImageNoise noise;
+  for (NoiseKind kind :
+       {NoiseKind::kCrop, NoiseKind::kDropout, NoiseKind::kResize,
+        NoiseKind::kBlur, NoiseKind::kJpeg}) {
+    const double seconds = MedianSeconds(repeats, [&] {
+      noise.Forward(kind, watermarked, cover, &noised, &rng);
+      noise.Backward(noised, &dimage);
+    });
+    std::printf(" | %s %.1f ms", NoiseName(kind), 1e3 * seconds);
+  }
+  std::printf("\n");
+}
+
+#ifdef WATERGS_WITH_CUDA
+// CudaDecoder forward (Logits) and forward + input gradient at 128 and 256.
+void CudaDecoderTimings(watergs::HiddenModel& model, bool tf32, int repeats) {
+  using namespace watergs;
+  CudaDecoder decoder(model, tf32);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  for (int size : {128, 256}) {
+    ImageRGB image(size, size);
+    for (float& v : image.data) v = unit(rng);
+    std::vector<float> dlogits(model.config.num_bits, 0.01f);
+    ImageRGB grad;
+    const double forward =
+        MedianSeconds(repeats, [&] { decoder.Logits(image); });
+    const double both = MedianSeconds(repeats, [&] {
+      image.data[0] = unit(rng);  // defeat the forward cache
+      decoder.InputGradient(image, dlogits, &grad);
+    });
+    const double macs = double(model.decoder->MacsPerPixel()) * size * size;
+    std::printf(
+        "cuda decoder %dx%d (%s): Logits %.2f ms (%.0f GFLOP/s), "
+        "forward+input-gradient %.2f ms (%.0f GFLOP/s)\n",
+        size, size, tf32 ? "TF32" : "float32", 1e3 * forward,
+        2.0 * macs / forward * 1e-9, 1e3 * both, 4.0 * macs / both * 1e-9);
+  }
+}
+
+// CudaDecoderTrainer steps (48 bits, 64 channels) at (crop, batch) under
+// `kind`; GFLOP/s counts forward, backward-data and backward-filter of both
+// networks as 3 forward passes.
+void CudaTrainerTimings(int crop, int batch, watergs::NoiseKind kind, bool tf32,
+                        int repeats) {
+  using namespace watergs;
+  HiddenConfig config;
+  HiddenModel model(config, true, 2);
+  NetworkAdam adam(model.AllParameters(), 1e-3f);
+  CudaDecoderTrainer trainer(model, adam, tf32);
+  ImageNoise noise;
+  std::mt19937 rng(4);
+  Tensor cover;
+  std::vector<float> targets;
+  RandomBatch(batch, crop, config.num_bits, &rng, &cover, &targets);
+  const double seconds = MedianSeconds(repeats, [&] {
+    trainer.Step(noise, kind, cover, targets, 0.7f, &rng);
+    cudaDeviceSynchronize();  // the Adam kernels are asynchronous
+  });
+  const double flops =
+      6.0 *
+      double(model.encoder->MacsPerPixel() + model.decoder->MacsPerPixel()) *
+      crop * crop * batch;
+  std::printf(
+      "cuda training step (crop %d, batch %d, %s noise, %s): %.1f ms, %.2f "
+      "steps/s, %.0f images/s, %.0f GFLOP/s\n",
+      crop, batch, NoiseName(kind), tf32 ? "TF32" : "float32", 1e3 * seconds,
+      1.0 / seconds, batch / seconds, flops / seconds * 1e-9);
+}
+#endif
+
+// GPU timings; the host part first (it needs no GPU).
+int RunCuda([[maybe_unused]] const std::string& weights, int repeats) {
+  using namespace watergs;
+  HostWorkPerStep(repeats);
+  std::string why;
+  if (!CudaAvailable(&why)) {
+    std::printf("decoder_benchmark --device cuda: no GPU timings: %s\n",
+                why.c_str());
+    return 0;
+  }
+#ifdef WATERGS_WITH_CUDA
+  HiddenConfig config;
+  std::unique_ptr<HiddenModel> model =
+      weights.empty() ? std::make_unique<HiddenModel>(config, true, 1)
+                      : LoadHiddenModel(weights, true);
+  std::printf("decoder_benchmark --device cuda: %s, %d bits, %d channels, %s\n",
+              CudaDeviceDescription().c_str(), model->config.num_bits,
+              model->config.channels,
+              weights.empty() ? "random weights" : weights.c_str());
+  for (bool tf32 : {false, true}) {
+    CudaDecoderTimings(*model, tf32, repeats);
+    CudaTrainerTimings(128, 8, NoiseKind::kIdentity, tf32, repeats);
+    CudaTrainerTimings(256, 16, NoiseKind::kIdentity, tf32, repeats);
+    CudaTrainerTimings(256, 16, NoiseKind::kJpeg, tf32, repeats);
+  }
+#endif
+  return 0;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string device = "cpu";
+  std::vector<std::string> positional;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--device" && i + 1 < argc) {
+      device = argv[++i];
+    } else if (arg.rfind("--device=", 0) == 0) {
+      device = arg.substr(9);
+    } else {
+      positional.push_back(arg);
+    }
+  }
+  const std::string weights = positional.size() > 0 ? positional[0] : "";
+  const int repeats =
+      positional.size() > 1 ? std::atoi(positional[1].c_str()) : 5;
+  if (device == "cpu") return RunCpu(weights, repeats);
+  if (device == "cuda") return RunCuda(weights, repeats);
+  std::fprintf(stderr, "decoder_benchmark: --device must be cpu or cuda\n");
+  return 2;
 }

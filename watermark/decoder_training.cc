@@ -5,12 +5,19 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
+#include <string>
 
 #include "gaussian/error.h"
 #include "gaussian/progress.h"
+
+#ifdef WATERGS_WITH_CUDA
+#include "gaussian/cuda/cuda_device.h"
+#include "watermark/cuda/cuda_decoder_training.h"
+#endif
 
 namespace watergs {
 namespace {
@@ -106,6 +113,72 @@ int64_t LoadCheckpoint(const std::string& path, HiddenModel* model,
   for (const auto& [key, value] : file.meta)
     if (key == "psnr_target_milli") *psnr_target = float(value * 1e-3);
   return file.Meta("step", path);
+}
+
+// Training steps on options.device. On the GPU the model and Adam state live
+// on the device between steps; SyncToHost brings them back into the CPU
+// model and optimiser, which checkpoints, validation and the final save
+// read. On the CPU every call is exactly TrainStep.
+class StepRunner {
+ public:
+  StepRunner(HiddenModel& model, NetworkAdam& adam,
+             const DecoderTrainingOptions& options)
+      : model_(model), adam_(adam) {
+    if (options.device != Device::kCuda) return;
+#ifdef WATERGS_WITH_CUDA
+    // Built after any resume: the device starts from the loaded state.
+    gpu_ =
+        std::make_unique<CudaDecoderTrainer>(model, adam, options.allow_tf32);
+    std::cerr << "train_decoder: steps on " << CudaDeviceDescription()
+              << (options.allow_tf32 ? " (TF32 allowed)" : " (float32)")
+              << "\n";
+#else
+    Fail("train_decoder --device cuda: built without the CUDA backend");
+#endif
+  }
+
+  // cover [N,3,H,W] in [-1,1], targets N*L bits: one step (see TrainStep).
+  StepResult Step(NoiseKind kind, const Tensor& cover,
+                  const std::vector<float>& targets, float image_weight,
+                  std::mt19937* rng) {
+#ifdef WATERGS_WITH_CUDA
+    if (gpu_) {
+      device_ahead_ = true;
+      return gpu_->Step(noise_, kind, cover, targets, image_weight, rng);
+    }
+#endif
+    return TrainStep(model_, adam_, noise_, kind, cover, targets, image_weight,
+                     rng, &buffers_);
+  }
+
+  // Makes the CPU model and optimiser hold the latest state.
+  void SyncToHost() {
+#ifdef WATERGS_WITH_CUDA
+    if (gpu_ && device_ahead_) gpu_->CopyToHost(&model_, &adam_);
+#endif
+    device_ahead_ = false;
+  }
+
+ private:
+  HiddenModel& model_;
+  NetworkAdam& adam_;
+  ImageNoise noise_;
+  // CPU step buffers.
+  StepBuffers buffers_;
+  // Whether the device has steps the CPU copy lacks.
+  bool device_ahead_ = false;
+#ifdef WATERGS_WITH_CUDA
+  // Device state (null on the CPU).
+  std::unique_ptr<CudaDecoderTrainer> gpu_;
+#endif
+};
+
+// Fails with one line unless options.device can run (CUDA: backend built
+// and a GPU visible).
+void CheckDevice(const DecoderTrainingOptions& options) {
+  std::string why;
+  if (options.device == Device::kCuda && !CudaAvailable(&why))
+    Fail("train_decoder --device cuda: " + why);
 }
 
 }  // namespace
@@ -229,6 +302,7 @@ StepResult TrainStep(HiddenModel& model, NetworkAdam& adam, ImageNoise& noise,
 }
 
 void TrainDecoder(const DecoderTrainingOptions& options) {
+  CheckDevice(options);
   const std::vector<cv::Mat> photos = LoadPhotoFolder(options.image_path);
   std::vector<cv::Mat> held_out;
   if (!options.validation_path.empty())
@@ -260,9 +334,8 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
   const int64_t total = int64_t(steps_per_epoch) * options.epochs;
   const int bits = options.config.num_bits;
 
-  ImageNoise noise;
+  StepRunner runner(model, adam, options);
   Tensor cover(options.batch_size, 3, crop, crop);
-  StepBuffers buffers;
   std::vector<float> targets, signs;
   ProgressBar progress("train_decoder", total, step);
   double running_psnr = 0, running_acc = 0, running_bce = 0;
@@ -279,9 +352,9 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
     RandomMessages(options.batch_size, bits, &rng, &targets, &signs);
     const NoiseKind kind = options.noise[std::uniform_int_distribution<size_t>(
         0, options.noise.size() - 1)(rng)];
-    const StepResult r = TrainStep(model, adam, noise, kind, cover, targets,
-                                   image_weight, &rng, &buffers);
+    const StepResult r = runner.Step(kind, cover, targets, image_weight, &rng);
     const double psnr = r.psnr, bce = r.bce;
+    if (options.on_step) options.on_step(step, r);
 
     const double a = step == 0 ? 1.0 : 0.05;
     running_psnr += a * (psnr - running_psnr);
@@ -305,9 +378,12 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
     const bool out_of_time =
         options.max_minutes > 0 &&
         progress.ElapsedSeconds() > options.max_minutes * 60;
-    if (epoch_end || out_of_time ||
-        (options.checkpoint_every > 0 &&
-         (step + 1) % options.checkpoint_every == 0))
+    const bool save = epoch_end || out_of_time ||
+                      (options.checkpoint_every > 0 &&
+                       (step + 1) % options.checkpoint_every == 0);
+    // Every epoch end saves, so validation reads the synced model too.
+    if (save) runner.SyncToHost();
+    if (save)
       SaveCheckpoint(checkpoint, model, adam, step + 1, image_weight,
                      psnr_target, options);
     if (epoch_end && !held_out.empty())
@@ -323,6 +399,7 @@ void TrainDecoder(const DecoderTrainingOptions& options) {
     }
   }
   progress.Finish();
+  runner.SyncToHost();
   SaveHiddenModel(options.output_path, model, true);
   if (!held_out.empty())
     std::cout << "final: "

@@ -2,19 +2,29 @@
 // Watermark Decoder"): random crops of natural photos, random messages,
 // loss image_weight * MSE(cover, watermarked) + BCE(message, logits), one 2D
 // noise layer sampled per step, Adam, checkpoints, resume and per-epoch
-// validation on held-out photos.
+// validation on held-out photos. The steps run on the CPU or, with the CUDA
+// backend, on the GPU (cuda/cuda_decoder_training.h); checkpoints, weights
+// and validation are the CPU's either way, so a run resumes on either device.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "watermark/hidden_model.h"
 #include "watermark/image_noise.h"
 
 namespace watergs {
+
+// Figures of one training step.
+struct StepResult {
+  // Mean BCE of the step, encoder PSNR (dB) and bit accuracy (0..1).
+  double bce = 0, psnr = 0, accuracy = 0;
+};
 
 struct DecoderTrainingOptions {
   // Folder of training photos (jpg/png), searched recursively.
@@ -55,6 +65,15 @@ struct DecoderTrainingOptions {
   // Stops cleanly (checkpoint + weights) after this many minutes; 0: never.
   double max_minutes = 0;
   uint32_t seed = 1;
+  // Where the steps run. kCuda needs the CUDA backend and a visible GPU
+  // (TrainDecoder fails with one line saying which is missing).
+  Device device = Device::kCpu;
+  // kCuda only: cuDNN/cuBLAS may use TF32 tensor cores (faster, ~1e-3
+  // relative error per layer instead of float32 rounding).
+  bool allow_tf32 = false;
+  // If set, called after every step with its 0-based index and figures
+  // (tests compare the CPU and GPU trajectories through it).
+  std::function<void(int64_t step, const StepResult& result)> on_step;
 };
 
 // Validation figures on held-out photos.
@@ -78,12 +97,6 @@ ValidationResult Validate(HiddenModel& model,
 // One line per figure, e.g. "psnr 34.1 dB | identity 99.3% | crop 97.1% ...".
 std::string FormatValidation(const ValidationResult& result);
 
-// Figures of one training step.
-struct StepResult {
-  // Mean BCE of the step, encoder PSNR (dB) and bit accuracy (0..1).
-  double bce = 0, psnr = 0, accuracy = 0;
-};
-
 // Reusable buffers of TrainStep.
 struct StepBuffers {
   // Decoder input, gradients of logits, of the decoder input, of the
@@ -106,7 +119,9 @@ StepResult TrainStep(HiddenModel& model, NetworkAdam& adam, ImageNoise& noise,
 float NextPsnrTarget(const DecoderTrainingOptions& options, int64_t step,
                      double running_accuracy, float current);
 
-// Runs the whole training; writes output_path (atomically) at the end.
+// Runs the whole training on options.device; writes output_path (atomically)
+// at the end. Throws Error before reading any photo when the device is
+// kCuda and CUDA is unusable.
 void TrainDecoder(const DecoderTrainingOptions& options);
 
 // Converts 8-bit RGB pixels [y0,y0+h) x [x0,x0+w) of `photo` into slot b of
