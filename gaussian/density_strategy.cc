@@ -98,6 +98,23 @@ class InriaDensityStrategy : public DensityStrategy {
            iteration < options_.densify_until_iter;
   }
 
+  bool ReadsGradients(int64_t iteration) const override {
+    return iteration < options_.densify_until_iter;
+  }
+
+  // Exactly the iterations where PostBackward densifies or resets.
+  bool MayChangeModel(int64_t iteration) const override {
+    if (iteration >= options_.densify_until_iter) return false;
+    const bool densify = iteration > options_.densify_from_iter &&
+                         options_.densification_interval > 0 &&
+                         iteration % options_.densification_interval == 0;
+    const bool reset =
+        (options_.opacity_reset_interval > 0 &&
+         iteration % options_.opacity_reset_interval == 0) ||
+        (options_.white_background && iteration == options_.densify_from_iter);
+    return densify || reset;
+  }
+
   DensityEvent PostBackward(int64_t iteration, const GaussianGradients& grads,
                             const std::vector<float>* radii,
                             GaussianModel* model, Adam* adam) override {
@@ -288,6 +305,8 @@ class FixedDensityStrategy : public DensityStrategy {
  public:
   void Init(const GaussianModel&) override {}
   bool WantsRadii(int64_t) const override { return false; }
+  bool ReadsGradients(int64_t) const override { return false; }
+  bool MayChangeModel(int64_t) const override { return false; }
   DensityEvent PostBackward(int64_t, const GaussianGradients&,
                             const std::vector<float>*, GaussianModel*,
                             Adam*) override {

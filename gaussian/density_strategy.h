@@ -64,6 +64,22 @@ class DensityStrategy {
   virtual void Init(const GaussianModel& model) = 0;
   // Whether PostBackward at `iteration` uses per-Gaussian screen radii.
   virtual bool WantsRadii(int64_t iteration) const = 0;
+  // Whether PostBackward at `iteration` reads `grads`. The GPU trainer
+  // (cuda/cuda_training_step.h) downloads grads.visible and
+  // grads.mean2d_grad_norm_ndc only then, and no other gradient array ever:
+  // a strategy for that path must need no more. Conservative default.
+  virtual bool ReadsGradients(int64_t iteration) const {
+    (void)iteration;
+    return true;
+  }
+  // Whether PostBackward at `iteration` may change the model or the Adam
+  // state. The GPU trainer copies both to the host and back only then;
+  // otherwise PostBackward sees a host model of the right size whose values
+  // may be stale. Conservative default: every iteration.
+  virtual bool MayChangeModel(int64_t iteration) const {
+    (void)iteration;
+    return true;
+  }
   // After the backward pass of 1-based `iteration`: `grads` of this view,
   // `radii` (N screen radii in pixels, 0 if not visible) or null. May change
   // `model` and `adam` together; the trainer then skips that optimiser step

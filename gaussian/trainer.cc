@@ -15,6 +15,11 @@
 #include "gaussian/progress.h"
 #include "gaussian/projection.h"
 
+#ifdef WATERGS_WITH_CUDA
+#include "gaussian/cuda/cuda_rasterizer_device.h"
+#include "gaussian/cuda/cuda_training_step.h"
+#endif
+
 namespace watergs {
 namespace {
 
@@ -114,6 +119,59 @@ Trainer::Trainer(const TrainerOptions& options, const TrainingViews& views,
   // Factored SH gradients are exact and save 168 bytes per Gaussian; the
   // 8-bit compact moments read dense ones.
   grads_.compact_sh = !options_.adam.compact_moments;
+#ifdef WATERGS_WITH_CUDA
+  // Compact and bfloat16 moments have no CUDA Adam: those runs keep the
+  // host step, with the CUDA rasterizer behind the host interface (same
+  // results, but the model and gradients cross the bus every iteration).
+  auto* cuda = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
+  if (cuda && !options_.adam.compact_moments && !options_.adam.half_moments) {
+    device_ = std::make_unique<CudaTrainingStep>(
+        cuda, options_.adam, scene_extent_, options_.lambda_dssim, &model_,
+        &adam_);
+  }
+#endif
+}
+
+Trainer::~Trainer() = default;
+
+// The host model_ and adam_ are a cache of the device state on the GPU path:
+// filling them from the const accessors is what `const` promises callers
+// (the state they see is the trainer's), so the device step writes them
+// through the pointers it was given.
+void Trainer::SyncToHost() const {
+#ifdef WATERGS_WITH_CUDA
+  if (device_) {
+    device_->PullModel();
+    device_->PullAdam();
+  }
+#endif
+}
+
+const GaussianModel& Trainer::model() const {
+#ifdef WATERGS_WITH_CUDA
+  if (device_) device_->PullModel();
+#endif
+  return model_;
+}
+
+GaussianModel& Trainer::mutable_model() {
+#ifdef WATERGS_WITH_CUDA
+  if (device_) {
+    device_->PullModel();
+    device_->MarkHostModelEdited();
+  }
+#endif
+  return model_;
+}
+
+Adam& Trainer::adam() {
+#ifdef WATERGS_WITH_CUDA
+  if (device_) {
+    device_->PullAdam();
+    device_->MarkHostAdamEdited();
+  }
+#endif
+  return adam_;
 }
 
 std::string Trainer::RunSignature() const {
@@ -174,6 +232,9 @@ IterationStats Trainer::Step() {
   RenderOptions render_options;
   render_options.background = options_.background;
   render_options.active_sh_degree = active_sh_degree_;
+#ifdef WATERGS_WITH_CUDA
+  if (device_) return StepOnDevice(it, view, camera, render_options, *truth);
+#endif
   auto t0 = Clock::now();
   const double c0 = ProcessCpuSeconds();
   std::unique_ptr<RenderContext> context;
@@ -184,16 +245,7 @@ IterationStats Trainer::Step() {
   auto t2 = Clock::now();
   const double c2 = ProcessCpuSeconds();
   if (!std::isfinite(stats.loss.total)) {
-    FlushLog();
-    std::string kept =
-        last_checkpoint_.empty()
-            ? "no checkpoint was written (use "
-              "--checkpoint_every)"
-            : "the last checkpoint is " + last_checkpoint_ + " (iteration " +
-                  std::to_string(last_checkpoint_iteration_) + ")";
-    Fail("training stopped at iteration " + std::to_string(it) +
-         ": the loss is not finite (" + std::to_string(stats.loss.total) +
-         ") on view " + views_.Name(view) + "; " + kept);
+    FailNonFiniteLoss(it, stats.loss.total, view);
   }
   rasterizer_->Backward(model_, *context, grad_image_, &grads_);
   context.reset();
@@ -210,12 +262,7 @@ IterationStats Trainer::Step() {
       it < options_.iterations
           ? strategy_->PostBackward(it, grads_, radii, &model_, &adam_)
           : DensityEvent{};
-  if (model_.size() == 0) {
-    FlushLog();
-    Fail("training stopped at iteration " + std::to_string(it) +
-         ": density control pruned every Gaussian (all nearly transparent "
-         "or too large)");
-  }
+  if (model_.size() == 0) FailAllPruned(it);
   auto t4 = Clock::now();
   const double c4 = ProcessCpuSeconds();
   // Inria: tensors replaced by densification or an opacity reset have no
@@ -242,6 +289,107 @@ IterationStats Trainer::Step() {
   elapsed_seconds_ += Seconds(t0, t5);
   return stats;
 }
+
+void Trainer::FailNonFiniteLoss(int64_t it, double loss, size_t view) {
+  FlushLog();
+  std::string kept = last_checkpoint_.empty()
+                         ? "no checkpoint was written (use "
+                           "--checkpoint_every)"
+                         : "the last checkpoint is " + last_checkpoint_ +
+                               " (iteration " +
+                               std::to_string(last_checkpoint_iteration_) + ")";
+  Fail("training stopped at iteration " + std::to_string(it) +
+       ": the loss is not finite (" + std::to_string(loss) + ") on view " +
+       views_.Name(view) + "; " + kept);
+}
+
+void Trainer::FailAllPruned(int64_t it) {
+  FlushLog();
+  Fail("training stopped at iteration " + std::to_string(it) +
+       ": density control pruned every Gaussian (all nearly transparent "
+       "or too large)");
+}
+
+#ifdef WATERGS_WITH_CUDA
+// Step on the GPU: the same stages and rules as the host path. Density
+// control runs on the host: on iterations where it only accumulates
+// statistics it gets this view's visibility and NDC gradient norms (and
+// radii) and a host model of the right size; where it may change the model
+// (MayChangeModel: for Inria's ADC the densification iterations, every 100,
+// and opacity resets) the model and Adam moments come down first and go
+// back up after. That round trip is ~710 bytes per Gaussian each way at SH
+// degree 3 (59 parameters and 2 x 59 moments): ~0.7 GB, ~100 ms at 1M
+// Gaussians every 100 iterations, ~1 ms per iteration amortised.
+IterationStats Trainer::StepOnDevice(int64_t it, size_t view,
+                                     const RenderCamera& camera,
+                                     const RenderOptions& render_options,
+                                     const ImageRGB& truth) {
+  IterationStats stats;
+  stats.iteration = it;
+  auto t0 = Clock::now();
+  const double c0 = ProcessCpuSeconds();
+  device_->Forward(camera, render_options, truth);
+  device_->Synchronize();
+  auto t1 = Clock::now();
+  const double c1 = ProcessCpuSeconds();
+  stats.loss = device_->Loss();
+  auto t2 = Clock::now();
+  const double c2 = ProcessCpuSeconds();
+  if (!std::isfinite(stats.loss.total)) {
+    FailNonFiniteLoss(it, stats.loss.total, view);
+  }
+  const bool last = it >= options_.iterations;
+  const bool wants_radii = !last && strategy_->WantsRadii(it);
+  device_->Backward(!last && strategy_->ReadsGradients(it) ? &grads_ : nullptr,
+                    wants_radii ? &radii_ : nullptr);
+  device_->Synchronize();
+  auto t3 = Clock::now();
+  const double c3 = ProcessCpuSeconds();
+  // As on the host path, the last iteration's model is neither densified
+  // nor reset.
+  DensityEvent event;
+  if (!last) {
+    const bool may_change = strategy_->MayChangeModel(it);
+    if (may_change) SyncToHost();
+    const size_t before = model_.size();
+    event = strategy_->PostBackward(it, grads_, wants_radii ? &radii_ : nullptr,
+                                    &model_, &adam_);
+    if (may_change) {
+      device_->MarkHostModelEdited();
+      device_->MarkHostAdamEdited();
+      device_->PushIfStale();
+    } else if (event.densified || event.opacity_reset ||
+               model_.size() != before) {
+      Fail("training stopped at iteration " + std::to_string(it) +
+           ": the density strategy changed the model on an iteration its "
+           "MayChangeModel excludes");
+    }
+  }
+  if (model_.size() == 0) FailAllPruned(it);
+  auto t4 = Clock::now();
+  const double c4 = ProcessCpuSeconds();
+  // Host path's rules: no step after densification or on the last
+  // iteration, none for the opacity group after a reset.
+  if (!last && !event.densified) {
+    device_->AdamStep(it, event.opacity_reset);
+  }
+  auto t5 = Clock::now();
+  const double c5 = ProcessCpuSeconds();
+  stats.forward_s = Seconds(t0, t1);
+  stats.loss_s = Seconds(t1, t2);
+  stats.backward_s = Seconds(t2, t3);
+  stats.density_s = Seconds(t3, t4);
+  stats.adam_s = Seconds(t4, t5);
+  stats.cpu_s = {c1 - c0, c2 - c1, c3 - c2, c4 - c3, c5 - c4};
+  stats.num_gaussians = model_.size();
+  stats.cloned = event.cloned;
+  stats.split = event.split;
+  stats.pruned = event.pruned;
+  iteration_ = it;
+  elapsed_seconds_ += Seconds(t0, t5);
+  return stats;
+}
+#endif
 
 void Trainer::AppendLog(const IterationStats& stats, const EvalResult* test) {
   nlohmann::json j;
@@ -285,7 +433,8 @@ void Trainer::Run() {
     // reset iteration (3000, 6000, ...) does not score the reset model.
     EvalResult test;
     if (test_now) {
-      test = EvaluateViews(*rasterizer_, model_, views_, options_.test_views,
+      // model() brings a GPU run's model to the host first.
+      test = EvaluateViews(*rasterizer_, model(), views_, options_.test_views,
                            options_.background, active_sh_degree_);
     }
     const IterationStats stats = Step();
@@ -323,6 +472,8 @@ void Trainer::Run() {
 }
 
 TrainingCheckpoint Trainer::MakeCheckpoint() const {
+  // A GPU run's model and moments come down first (~710 bytes per Gaussian).
+  SyncToHost();
   TrainingCheckpoint c;
   c.iteration = iteration_;
   c.active_sh_degree = active_sh_degree_;
@@ -395,6 +546,13 @@ void Trainer::Resume(const std::string& checkpoint_path) {
   elapsed_seconds_ = c.elapsed_seconds;
   last_checkpoint_ = checkpoint_path;
   last_checkpoint_iteration_ = iteration_;
+#ifdef WATERGS_WITH_CUDA
+  // The GPU copies are rebuilt from the restored ones at the next step.
+  if (device_) {
+    device_->MarkHostModelEdited();
+    device_->MarkHostAdamEdited();
+  }
+#endif
   // Keep the log lines the checkpoint covers.
   log_lines_.clear();
   if (!options_.log_path.empty() &&

@@ -22,6 +22,9 @@
 
 namespace watergs {
 
+// The device-resident step (cuda/cuda_training_step.h, CUDA builds only).
+class CudaTrainingStep;
+
 // Cameras and ground-truth images the trainer learns from.
 class TrainingViews {
  public:
@@ -113,11 +116,13 @@ class Trainer {
  public:
   // `train_views` index into `views` (which must outlive the trainer);
   // `scene_extent` is Inria's cameras_extent. A null strategy means Inria's
-  // ADC with options.density.
+  // ADC with options.density. With a CudaRasterizer and float32 moments the
+  // model, moments and gradients live on the GPU (cuda_training_step.h).
   Trainer(const TrainerOptions& options, const TrainingViews& views,
           std::vector<size_t> train_views, GaussianModel initial,
           double scene_extent, std::unique_ptr<Rasterizer> rasterizer,
           std::unique_ptr<DensityStrategy> strategy = nullptr);
+  ~Trainer();
 
   // Restores the state of a checkpoint written by a run with the same
   // options; keeps the log lines up to its iteration. Throws Error.
@@ -133,9 +138,14 @@ class Trainer {
   // Rewrites the log file with every line so far (atomically).
   void FlushLog();
 
-  const GaussianModel& model() const { return model_; }
-  GaussianModel& mutable_model() { return model_; }
-  Adam& adam() { return adam_; }
+  // On the GPU path these copy the device state to the host first (only
+  // when it moved on), and the mutable ones send host edits back before the
+  // next step; a reference is current until the next Step.
+  const GaussianModel& model() const;
+  GaussianModel& mutable_model();
+  Adam& adam();
+  // Makes the host model and Adam current (GPU path; no-op on the CPU).
+  void SyncToHost() const;
   Rasterizer& rasterizer() { return *rasterizer_; }
   int64_t iteration() const { return iteration_; }
   int active_sh_degree() const { return active_sh_degree_; }
@@ -150,6 +160,15 @@ class Trainer {
   size_t NextView();
   std::string RunSignature() const;
   void AppendLog(const IterationStats& stats, const EvalResult* test);
+  [[noreturn]] void FailNonFiniteLoss(int64_t it, double loss, size_t view);
+  [[noreturn]] void FailAllPruned(int64_t it);
+#ifdef WATERGS_WITH_CUDA
+  // Step's GPU path from the render on, for view `view` at iteration `it`.
+  IterationStats StepOnDevice(int64_t it, size_t view,
+                              const RenderCamera& camera,
+                              const RenderOptions& render_options,
+                              const ImageRGB& truth);
+#endif
 
   TrainerOptions options_;
   const TrainingViews& views_;
@@ -159,6 +178,10 @@ class Trainer {
   std::unique_ptr<Rasterizer> rasterizer_;
   std::unique_ptr<DensityStrategy> strategy_;
   Adam adam_;
+#ifdef WATERGS_WITH_CUDA
+  // The GPU step mirroring model_ and adam_ (null on the host path).
+  std::unique_ptr<CudaTrainingStep> device_;
+#endif
   TrainingLoss loss_;
   std::mt19937_64 rng_;
   // Views not yet drawn in the current epoch.

@@ -75,11 +75,11 @@ using cuda_raster::TileRect;
 struct CudaWorkspace {
   // Copy of a host model (Forward; ForwardDevice reads the caller's arrays).
   Growable<float> means, log_scales, quats, opacity_logits, sh_dc, sh_rest;
-  // Per Gaussian: splat, binned tiles, depth, tile count and its inclusive
-  // prefix sum, colour-clamp bits, visibility.
+  // Per Gaussian: splat, binned tiles, depth, screen radius, tile count and
+  // its inclusive prefix sum, colour-clamp bits, visibility.
   Growable<DeviceSplat> splats;
   Growable<TileRect> tiles;
-  Growable<float> depth;
+  Growable<float> depth, radii;
   Growable<uint64_t> tile_counts, tile_offsets;
   Growable<uint8_t> clamped, visible;
   // (tile, depth) keys and Gaussian ids before and after the sort.
@@ -191,7 +191,8 @@ void ProjectAndBin(const CudaRenderContext& ctx, CudaWorkspace* ws) {
   const int num_tiles = (rt.x1 - rt.x0) * (rt.y1 - rt.y0);
   cuda_raster::ProjectionOutputs out{ws->splats.Fit(n),  ws->tiles.Fit(n),
                                      ws->depth.Fit(n),   ws->tile_counts.Fit(n),
-                                     ws->clamped.Fit(n), ws->visible.Fit(n)};
+                                     ws->clamped.Fit(n), ws->visible.Fit(n),
+                                     ws->radii.Fit(n)};
   ws->tile_offsets.Fit(n);
   cuda_raster::LaunchProject(ctx.model, ctx.camera, ctx.active_sh_degree, rt,
                              out);
@@ -410,6 +411,13 @@ void CudaRasterizer::BackwardDevice(const RenderContext& context,
     WATERGS_CUDA_CHECK(cudaMemcpy(grads.visible, ctx.workspace->visible.data(),
                                   n, cudaMemcpyDeviceToDevice));
   }
+}
+
+void CudaRasterizer::DownloadScreenRadii(const RenderContext& context,
+                                         std::vector<float>* radii) const {
+  const CudaRenderContext& ctx = AsCudaContext(context);
+  ctx.workspace->radii.Download(radii);
+  radii->resize(static_cast<size_t>(ctx.model.count));
 }
 
 std::unique_ptr<Rasterizer> MakeCudaRasterizer() {

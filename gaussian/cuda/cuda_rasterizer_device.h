@@ -70,6 +70,12 @@ class CudaRasterizer : public Rasterizer {
   // rect-sized HWC) to the gradient arrays `grads` (device).
   void BackwardDevice(const RenderContext& context, const float* grad_image,
                       const CudaGradientArrays& grads);
+  // The N screen radii of a Forward or ForwardDevice context, as
+  // ComputeScreenRadii gives them for its visible Gaussians (Inria's 3-sigma
+  // radius in pixels where visible, else 0): computed by the projection, so
+  // density control needs no second pass over the model.
+  void DownloadScreenRadii(const RenderContext& context,
+                           std::vector<float>* radii) const;
 
  private:
   // A pooled workspace no live context holds, or a new one.

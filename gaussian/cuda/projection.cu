@@ -314,6 +314,7 @@ __global__ void ProjectKernel(DeviceModel model, DeviceCamera cam, int degree,
   out.clamped[i] = 0;
   out.depth[i] = 0.f;
   out.tiles[i] = TileRect{0, 0, 0, 0};
+  if (out.radii) out.radii[i] = 0.f;
   Projected p;
   if (!ProjectForward(cam, &model.means[3 * i], &model.log_scales[3 * i],
                       &model.quats[4 * i], &p)) {
@@ -321,6 +322,7 @@ __global__ void ProjectKernel(DeviceModel model, DeviceCamera cam, int degree,
   }
   if (Empty(Intersect(p.tiles, render_tiles))) return;
   out.visible[i] = 1;
+  if (out.radii) out.radii[i] = static_cast<float>(p.radius);
   const float opacity = static_cast<float>(
       1.0 / (1.0 + exp(-static_cast<double>(model.opacity_logits[i]))));
   DeviceSplat s{};

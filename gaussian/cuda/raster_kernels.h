@@ -97,6 +97,9 @@ struct ProjectionOutputs {
   uint8_t* clamped;
   // 1 if visible (Inria's radius > 0 and its tiles meet the rendered ones).
   uint8_t* visible;
+  // Inria's 3-sigma screen radius in pixels where visible, else 0
+  // (ComputeScreenRadii of projection.h); may be null.
+  float* radii;
 };
 
 // Per-Gaussian gradient arrays (GaussianGradients layout) on the device.

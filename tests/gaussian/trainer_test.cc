@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <random>
 
@@ -341,6 +342,88 @@ TEST(TrainerCuda, StepsMatchTheCpuTrainer) {
   EXPECT_EQ(a.split, b.split);
   EXPECT_EQ(a.pruned, b.pruned);
   EXPECT_EQ(cpu.model().size(), gpu.model().size());
+}
+
+// A GPU run's checkpoint holds its device state (the trainer brings model
+// and moments to the host first), and a GPU trainer resumed from it takes
+// the steps the writing run takes, through densifications (18, 24) and an
+// opacity reset (18). Two GPU runs differ only in the order of the
+// backward pass's atomic sums, hence ExpectModelsAgree's tolerance.
+TEST(TrainerCuda, CheckpointResumesToTheSameResult) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene();
+  const std::string dir = TempDir("cuda_resume");
+  const TrainerOptions o = SmallRun(30);
+  Trainer first(o, s.views, s.train, s.init, 3.3,
+                MakeRasterizer(Device::kCuda));
+  for (int i = 0; i < 14; ++i) first.Step();
+  first.SaveCheckpoint(dir + "/run.ckpt");
+  const TrainingCheckpoint c = ReadCheckpoint(dir + "/run.ckpt");
+  EXPECT_EQ(c.iteration, 14);
+  ASSERT_NE(c.model.size(), s.init.size());  // densified at 6 and 12
+  EXPECT_EQ(c.model.means, first.model().means);
+  EXPECT_EQ(c.model.sh_rest, first.model().sh_rest);
+  const int xyz = static_cast<int>(ParamGroup::kXyz);
+  EXPECT_EQ(c.adam[xyz].exp_avg_sq,
+            first.adam().state(ParamGroup::kXyz).exp_avg_sq);
+  EXPECT_GT(c.adam[xyz].step, 0);
+
+  Trainer resumed(o, s.views, s.train, s.init, 3.3,
+                  MakeRasterizer(Device::kCuda));
+  resumed.Resume(dir + "/run.ckpt");
+  ASSERT_EQ(resumed.iteration(), 14);
+  for (int i = 0; i < 10; ++i) {
+    const IterationStats a = first.Step(), b = resumed.Step();
+    EXPECT_NEAR(a.loss.total, b.loss.total, 1e-5 * (1 + a.loss.total))
+        << "iteration " << a.iteration;
+    EXPECT_EQ(a.num_gaussians, b.num_gaussians) << "iteration " << a.iteration;
+  }
+  testing::ExpectModelsAgree(first.model(), resumed.model(), o.adam, 3.3, 10);
+}
+
+// A GPU run with densification, an opacity reset and held-out evaluation:
+// the reset reaches the device model, every parameter and moment stays
+// finite, the Gaussian count follows the CPU run's, and the held-out score
+// logged at the last iteration is that of the model the run ends with
+// (evaluation reads the device model, not a stale host copy).
+TEST(TrainerCuda, DensityResetAndHeldOutRunStaysFiniteAndMatchesCpuCount) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene();
+  TrainerOptions o = SmallRun(40);
+  o.test_views = {0, 3};
+  o.test_iterations = {24, 40};
+  Trainer cpu(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  Trainer gpu(o, s.views, s.train, s.init, 3.3, MakeRasterizer(Device::kCuda));
+  for (int i = 0; i < 18; ++i) {
+    cpu.Step();
+    gpu.Step();
+  }
+  // Iteration 18 reset every opacity to at most 0.01 and skipped its step.
+  const float cap = ResetOpacityLogit(10.f, o.density.reset_opacity);
+  for (float logit : gpu.model().opacity_logits) ASSERT_LE(logit, cap);
+  cpu.Run();
+  gpu.Run();
+  EXPECT_EQ(gpu.iteration(), 40);
+  EXPECT_EQ(gpu.model().CountNonFinite(), 0u);
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    const AdamGroupState& state = gpu.adam().state(static_cast<ParamGroup>(g));
+    for (const std::vector<float>* v : {&state.exp_avg, &state.exp_avg_sq}) {
+      for (float x : *v)
+        ASSERT_TRUE(std::isfinite(x)) << GroupName(ParamGroup(g));
+    }
+  }
+  EXPECT_EQ(gpu.model().size(), cpu.model().size());
+  std::map<int64_t, double> logged;
+  for (const std::string& line : gpu.log_lines()) {
+    const nlohmann::json j = nlohmann::json::parse(line);
+    if (j.contains("test_psnr")) logged[j["iteration"]] = j["test_psnr"];
+  }
+  ASSERT_EQ(logged.size(), 2u);
+  EXPECT_TRUE(std::isfinite(logged[24]));
+  const EvalResult final_views =
+      EvaluateViews(gpu.rasterizer(), gpu.model(), s.views, o.test_views,
+                    o.background, gpu.active_sh_degree());
+  EXPECT_NEAR(final_views.psnr, logged[40], 1e-6);
 }
 
 }  // namespace

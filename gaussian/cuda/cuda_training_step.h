@@ -1,0 +1,109 @@
+// The device-resident training step of Trainer (trainer.h) when its
+// rasterizer is a CudaRasterizer: model, Adam moments, gradients, rendered
+// and gradient images stay on the GPU. Per iteration only the ground-truth
+// image goes up and, while density control accumulates statistics, the
+// visibility bytes, NDC gradient norms and (when asked) screen radii come
+// down (5-9 bytes per Gaussian instead of ~0.5 KB each way). The trainer's
+// host model and Adam are a mirror: pulled from the device before anything
+// reads them (Pull*), pushed back after the host edits them (MarkHost*).
+// Host C++ (C++20); only the .cu files it calls must stay C++17.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "gaussian/adam.h"
+#include "gaussian/camera.h"
+#include "gaussian/cuda/cuda_adam.h"
+#include "gaussian/cuda/cuda_loss.h"
+#include "gaussian/cuda/cuda_rasterizer_device.h"
+#include "gaussian/cuda/device_buffer.h"
+#include "gaussian/gaussian_model.h"
+#include "gaussian/image.h"
+#include "gaussian/loss.h"
+#include "gaussian/rasterizer.h"
+
+namespace watergs {
+
+class CudaTrainingStep {
+ public:
+  // `rasterizer`, `host_model` and `host_adam` (the trainer's) must outlive
+  // this. Float32 moments only (CudaAdam refuses the others). The device
+  // copies are built from the host ones at the first Forward.
+  CudaTrainingStep(CudaRasterizer* rasterizer, const AdamOptions& adam_options,
+                   double scene_extent, double lambda_dssim,
+                   GaussianModel* host_model, Adam* host_adam);
+  ~CudaTrainingStep();
+
+  // Renders the device model from `camera` and uploads `truth` (HWC, the
+  // render rect's size; Error otherwise). Pushes host edits first.
+  void Forward(const RenderCamera& camera, const RenderOptions& options,
+               const ImageRGB& truth);
+  // Loss of the last Forward and its image gradient, on the device.
+  LossTerms Loss();
+  // Backward of the last Forward into the device gradients. `statistics`
+  // (nullable) receives visible and mean2d_grad_norm_ndc (N each) and
+  // `radii` (nullable) the N screen radii of ComputeScreenRadii.
+  void Backward(GaussianGradients* statistics, std::vector<float>* radii);
+  // Adam at 1-based `iteration` on the device model with the device
+  // gradients; the opacity group is left alone when skip_opacity (an
+  // opacity reset replaced it). Returns the rejected count.
+  size_t AdamStep(int64_t iteration, bool skip_opacity);
+  // Waits for the device (stage timings).
+  void Synchronize();
+
+  // Device -> host copies of the model and of the Adam state (moments,
+  // step counts, rejected count) when the host ones are behind. Masks set
+  // on the host Adam are not mirrored (the trainer sets none).
+  void PullModel();
+  void PullAdam();
+  // The host model / Adam were replaced or edited (after a Pull): the
+  // device copies are rebuilt from them before the next use.
+  void MarkHostModelEdited();
+  void MarkHostAdamEdited();
+  // Uploads the host copies the device is behind on.
+  void PushIfStale();
+
+ private:
+  // The device model as the rasterizer reads it.
+  CudaModelArrays ModelArrays() const;
+  // Sizes the gradient buffers to the device model.
+  CudaGradientArrays GradientArrays();
+
+  CudaRasterizer* rasterizer_;
+  CudaAdam adam_;
+  CudaTrainingLoss loss_;
+  // The trainer's host copies.
+  GaussianModel* host_model_;
+  Adam* host_adam_;
+  // Which copy is behind: the host after a device step, the device after a
+  // host edit (never both for one part).
+  bool host_model_stale_ = false, host_adam_stale_ = false;
+  bool device_model_stale_ = true, device_adam_stale_ = true;
+  // The host Adam's rejected count when the device Adam was last rebuilt
+  // (CudaAdam counts from its Init).
+  int64_t rejected_base_ = 0;
+  // Device model (GaussianModel layout) and its SH degree and count.
+  DeviceBuffer<float> means_, log_scales_, quats_, opacity_logits_, sh_dc_,
+      sh_rest_;
+  int sh_degree_ = 0;
+  size_t count_ = 0;
+  // Gradients (factored SH), densification norms and visibility, N rows.
+  DeviceBuffer<float> grad_means_, grad_log_scales_, grad_quats_, grad_opacity_,
+      grad_color_, grad_view_dir_, grad_norm_, grad_norm_ndc_;
+  DeviceBuffer<uint8_t> visible_;
+  // One float for a group with no values per Gaussian (sh_rest at degree
+  // 0): CudaAdam wants a non-null array it never reads.
+  DeviceBuffer<float> placeholder_;
+  // Ground truth, render and dLoss/d(render) of the current view (HWC).
+  DeviceBuffer<float> truth_, image_, grad_image_;
+  int width_ = 0, height_ = 0;
+  // SH degree the current view was rendered with.
+  int active_sh_degree_ = 0;
+  // The current view's forward pass (alive from Forward to Backward).
+  std::unique_ptr<RenderContext> context_;
+};
+
+}  // namespace watergs
