@@ -160,8 +160,11 @@ class StepRunner {
   }
 
  private:
+  // The CPU model and optimiser: the trained state on the CPU, a copy
+  // refreshed by SyncToHost on the GPU.
   HiddenModel& model_;
   NetworkAdam& adam_;
+  // Noise layers on the host (on the GPU: every layer but identity).
   ImageNoise noise_;
   // CPU step buffers.
   StepBuffers buffers_;
