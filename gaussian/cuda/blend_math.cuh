@@ -17,7 +17,9 @@ constexpr float kMinTransmittance = 1e-4f;
 constexpr float kMinPower = -20.0f;
 
 // exp(x) for kMinPower <= x <= 0: the CPU's Cephes polynomial (RowExp), not
-// CUDA's expf, so that G agrees with the CPU to the last bits.
+// CUDA's expf, so that G differs from the CPU's by rounding only (not bit
+// for bit: nvcc and GCC both contract multiply-adds into FMAs, at different
+// places).
 __device__ inline float CephesExp(float x) {
   const float t = x * 1.44269504088896341f + 0.5f;
   int n = static_cast<int>(t);

@@ -320,6 +320,8 @@ void CudaRasterizer::ForwardDevice(const CudaModelArrays& model,
     Fail("render: a device model array is null");
   }
   auto ctx = NewContext(camera, options, model.sh_degree);
+  // The rect is never empty, so the kernels write the image.
+  if (image == nullptr) Fail("render: the device image array is null");
   ctx->workspace = AcquireWorkspace();
   ctx->model = DeviceModel{model.means,
                            model.log_scales,

@@ -307,7 +307,8 @@ __device__ void ShColorUnclamped(int degree, const float* dc, const float* rest,
 
 __global__ void ProjectKernel(DeviceModel model, DeviceCamera cam, int degree,
                               TileRect render_tiles, ProjectionOutputs out) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  // 64-bit: 4 * i overflows int from 2^29 Gaussians on.
+  const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i >= model.count) return;
   out.visible[i] = 0;
   out.tile_counts[i] = 0;
@@ -582,7 +583,8 @@ __global__ void GaussianBackwardKernel(
     DeviceModel model, DeviceCamera cam, int degree, int frame_width,
     int frame_height, const uint64_t* tile_counts, const uint8_t* clamped,
     const DeviceSplatGrad* splat_grads, GradientOutputs out) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  // 64-bit: 4 * i overflows int from 2^29 Gaussians on.
+  const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i >= model.count) return;
   const int stride = model.rest_stride;
   float* grad_dc = out.compact ? nullptr : &out.sh_dc[3 * i];
@@ -640,7 +642,10 @@ __global__ void GaussianBackwardKernel(
       sqrt(gx * gx * half_w * half_w + gy * gy * half_h * half_h));
 }
 
-int Blocks(int n) { return (n + kThreads - 1) / kThreads; }
+unsigned Blocks(int n) {
+  return static_cast<unsigned>((static_cast<int64_t>(n) + kThreads - 1) /
+                               kThreads);
+}
 
 }  // namespace
 

@@ -43,8 +43,9 @@ struct PixelBox {
 };
 
 // One projected Gaussian as the blending kernels read it: the CPU Splat's
-// fields (rasterize_forward.h) in the same order, 64 bytes.
-struct DeviceSplat {
+// fields (rasterize_forward.h) in the same order, 64 bytes (16-byte aligned:
+// the blending kernels copy it with four 128-bit loads).
+struct alignas(16) DeviceSplat {
   // Pixel-space mean (COLMAP convention).
   float mean_x, mean_y;
   // Conic (a, b, c): power = -0.5 (a dx^2 + c dy^2) - b dx dy.

@@ -29,7 +29,8 @@ __global__ void DuplicateKeysKernel(int n, const TileRect* tiles,
                                     const uint64_t* offsets,
                                     TileRect render_tiles, uint64_t* keys,
                                     uint32_t* ids) {
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  // 64-bit: blockIdx.x * blockDim.x overflows int for n near 2^31.
+  const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i >= n || counts[i] == 0) return;
   const TileRect t = tiles[i];
   const int range_w = render_tiles.x1 - render_tiles.x0;
@@ -83,7 +84,8 @@ void LaunchDuplicateKeys(int n, const TileRect* tiles, const float* depth,
                          const uint64_t* counts, const uint64_t* offsets,
                          TileRect render_tiles, uint64_t* keys, uint32_t* ids) {
   if (n <= 0) return;
-  DuplicateKeysKernel<<<(n + kThreads - 1) / kThreads, kThreads>>>(
+  const int64_t blocks = (static_cast<int64_t>(n) + kThreads - 1) / kThreads;
+  DuplicateKeysKernel<<<static_cast<unsigned>(blocks), kThreads>>>(
       n, tiles, depth, counts, offsets, render_tiles, keys, ids);
   WATERGS_CUDA_CHECK_LAUNCH();
 }

@@ -1,7 +1,8 @@
 // Parity of the CUDA rasterizer with the CPU one (the reference): forward
 // images and every gradient group, on random scenes, several poses, crops,
-// tile borders, a stack deeper than one shared-memory batch, hard inputs,
-// an empty model and a 1x1 image. Each parity test skips (saying why)
+// tile borders, a stack deeper than one shared-memory batch, clamped colour
+// channels and capped alphas, an SH-degree-0 model, hard inputs, an empty
+// model and a 1x1 image. Each parity test skips (saying why)
 // without a usable GPU; the last test checks the error a GPU-less machine
 // gives instead.
 //
@@ -188,6 +189,79 @@ TEST(CudaRasterizer, ParityAtLowerActiveShDegrees) {
   }
 }
 
+TEST(CudaRasterizer, ShDegreeZeroModelMatchesCpu) {
+  // No higher SH coefficients at all: sh_rest is empty on the host, so the
+  // device model's sh_rest pointer is null and must never be read.
+  const RenderCamera cam = RandomCamera(48, 40, 15);
+  SceneSpec spec;
+  spec.sh_degree = 0;
+  const GaussianModel model = RandomScene(cam, spec, 16);
+  ASSERT_TRUE(model.sh_rest.empty());
+  WATERGS_REQUIRE_CUDA();
+  for (bool compact : {false, true}) {
+    SCOPED_TRACE(compact ? "compact SH" : "dense SH");
+    ExpectParity(model, cam, RenderOptions(), compact);
+  }
+}
+
+// Whether the 0.99 alpha cap binds at one of the four pixel centres of the
+// frame around splat s's mean.
+bool CapBinds(const Splat& s, const RenderCamera& cam) {
+  const double x0 = std::floor(s.mean_x - 0.5) + 0.5;
+  const double y0 = std::floor(s.mean_y - 0.5) + 0.5;
+  for (double x : {x0, x0 + 1}) {
+    for (double y : {y0, y0 + 1}) {
+      if (x < 0 || y < 0 || x > cam.width || y > cam.height) continue;
+      const double dx = x - s.mean_x, dy = y - s.mean_y;
+      const double power = -0.5 * (s.conic_a * dx * dx + s.conic_c * dy * dy) -
+                           s.conic_b * dx * dy;
+      if (s.opacity * std::exp(power) > kMaxAlpha) return true;
+    }
+  }
+  return false;
+}
+
+TEST(CudaRasterizer, ClampedColoursAndCappedAlphaMatchCpu) {
+  // Every third Gaussian has a negative green (clamped at 0: no colour
+  // gradient there), every third an opacity above the 0.99 cap (zero slope
+  // where it binds): the two places where the backward is not the plain
+  // formula.
+  const RenderCamera cam = RandomCamera(64, 48, 17);
+  SceneSpec spec;
+  spec.count = 60;
+  GaussianModel model = RandomScene(cam, spec, 18);
+  for (size_t i = 0; i < model.size(); ++i) {
+    if (i % 3 == 0) model.sh_dc[3 * i + 1] = -6.f;
+    if (i % 3 != 1) continue;
+    // Opacity 0.9975 and the mean on a pixel centre, where G is ~1.
+    model.opacity_logits[i] = 6.f;
+    const double px = 5.5 + 3.0 * double(i % 19), py = 4.5 + 2.0 * (i % 20);
+    const double z = 2.5 + 0.05 * double(i);
+    PlaceAt(cam, &model, i, (px - cam.cx) / cam.fx * z,
+            (py - cam.cy) / cam.fy * z, z);
+  }
+  // The scene does what it is for (checked on the CPU, so also without a
+  // GPU): some rendered splats have a clamped channel, some a capped alpha.
+  ImageRGB image;
+  std::unique_ptr<RenderContext> context;
+  MakeCpuRasterizer()->Forward(model, cam, RenderOptions(), &image, &context);
+  const auto& cpu_context = dynamic_cast<const CpuRenderContext&>(*context);
+  EXPECT_GT(std::count_if(cpu_context.color_clamped.begin(),
+                          cpu_context.color_clamped.end(),
+                          [](uint8_t bits) { return bits & 2u; }),
+            3);
+  EXPECT_GT(std::count_if(cpu_context.splats.begin(), cpu_context.splats.end(),
+                          [&](const Splat& s) { return CapBinds(s, cam); }),
+            3);
+  WATERGS_REQUIRE_CUDA();
+  RenderOptions options;
+  options.background = {0.3f, 0.6f, 0.2f};
+  for (bool compact : {false, true}) {
+    SCOPED_TRACE(compact ? "compact SH" : "dense SH");
+    ExpectParity(model, cam, options, compact);
+  }
+}
+
 TEST(CudaRasterizer, CompactShGradientsMatchCpu) {
   WATERGS_REQUIRE_CUDA();
   const RenderCamera cam = RandomCamera(64, 48, 9);
@@ -370,6 +444,12 @@ TEST(CudaRasterizer, ReusedBuffersAndLiveContextsStayCorrect) {
     ExpectGroupClose("means", cpu_grads.means, grads_a.means);
     ExpectGroupClose("sh_rest", cpu_grads.sh_rest, grads_a.sh_rest);
     EXPECT_EQ(cpu_grads.visible, grads_a.visible);
+    // A second backward of the same context starts from zeroed atomics.
+    GaussianGradients again;
+    gpu->Backward(model, *ctx_a, PatternGradient(64, 48), &again);
+    ExpectGroupClose("means, second backward", cpu_grads.means, again.means);
+    ExpectGroupClose("opacity_logits, second backward",
+                     cpu_grads.opacity_logits, again.opacity_logits);
   }
 }
 
