@@ -20,6 +20,15 @@ for module in gaussian distortion watermark plugin; do
     >> "$out/parity_tests.txt" 2>&1 || status=1
 done
 grep -E "^\[  (PASSED|FAILED|SKIPPED) |^\[  FAILED  \]" "$out/parity_tests.txt" | tail -40
+# Memory errors, shared-memory races and sync errors in the kernels that the
+# parity tests exercise hardest (multi-batch tiles, crops, empty models).
+if command -v compute-sanitizer >/dev/null 2>&1; then
+  for tool in memcheck racecheck synccheck; do
+    compute-sanitizer --tool "$tool" --error-exitcode 9 \
+      "$build/tests/watergs_gaussian_test" --gtest_filter='CudaRasterizer.DeepTileStackMatchesCpu:CudaRasterizer.CropRectsMatchCpu:CudaRasterizer.EmptyModelRendersBackground:CudaRasterizer.ShDegreeZeroModelMatchesCpu' \
+      > "$out/sanitizer_$tool.txt" 2>&1 || { status=1; echo "compute-sanitizer $tool: errors (see sanitizer_$tool.txt)"; }
+  done
+fi
 demo=datasets_scripts/demo_scene
 {
   "$build/benchmarks/raster_benchmark" --device cuda --threads "$(nproc)"
@@ -27,6 +36,7 @@ demo=datasets_scripts/demo_scene
   "$build/benchmarks/raster_benchmark" --device cpu --threads "$(nproc)" --scenes 100
   "$build/benchmarks/train_benchmark" --device cuda --json "$out/train_cuda.json"
   "$build/benchmarks/train_benchmark" --device cpu --json "$out/train_cpu.json"
+  "$build/benchmarks/decoder_benchmark" --device cuda 5
 } > "$out/benchmarks.txt" 2>&1
 tail -40 "$out/benchmarks.txt"
 exit $status
