@@ -1,42 +1,67 @@
 #!/usr/bin/env bash
-# One-call GPU verification of the CUDA backend (issue 8), for the device
-# machine: builds with CUDA for the local GPU, runs the CUDA parity tests
-# (they skip without a GPU) and the benchmarks on cuda and cpu, and writes
-# logs to OUT (default $OUT, else ./gpu_check). Exit status: the tests'.
-#   bash scripts/gpu_check.sh [OUT]
+# GPU verification of the CUDA backend (issue 8), for the device machine:
+# builds with CUDA for the local GPU, runs the CUDA parity tests (they skip
+# without a GPU), compute-sanitizer on the rasterizer's hardest tests, and the
+# benchmarks on cuda and cpu; logs go to OUT (default $OUT, else ./gpu_check).
+# A device call is limited to 10 minutes and the build stays on a warm
+# machine, so the stages can run in separate calls:
+#   bash scripts/gpu_check.sh [OUT] [build] [tests] [sanitize] [bench]
+# (no stage named: all four). Exit status: non-zero if a stage failed.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-${OUT:-gpu_check}}"
+shift || true
+stages="${*:-build tests sanitize bench}"
 mkdir -p "$out"
 build=build-gpu
-nvidia-smi > "$out/nvidia_smi.txt" 2>&1
-arch=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d '.')
-cmake -S . -B "$build" -DWATERGS_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES="${arch:-90}" \
-  > "$out/configure.txt" 2>&1 || { tail -20 "$out/configure.txt"; exit 1; }
-cmake --build "$build" -j"$(nproc)" > "$out/build.txt" 2>&1 || { grep -m20 -E "error" "$out/build.txt"; exit 1; }
 status=0
-for module in gaussian distortion watermark plugin; do
-  "$build/tests/watergs_${module}_test" --gtest_filter='*Cuda*:*CUDA*' \
-    >> "$out/parity_tests.txt" 2>&1 || status=1
-done
-grep -E "^\[  (PASSED|FAILED|SKIPPED) |^\[  FAILED  \]" "$out/parity_tests.txt" | tail -40
-# Memory errors, shared-memory races and sync errors in the kernels that the
+
+stage_build() {
+  nvidia-smi > "$out/nvidia_smi.txt" 2>&1
+  local arch
+  arch=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d '.')
+  cmake -S . -B "$build" -DWATERGS_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES="${arch:-90}" \
+    > "$out/configure.txt" 2>&1 || { tail -20 "$out/configure.txt"; return 1; }
+  cmake --build "$build" -j"$(nproc)" > "$out/build.txt" 2>&1 ||
+    { grep -m20 -E "error" "$out/build.txt"; return 1; }
+}
+
+stage_tests() {
+  local rc=0 module
+  : > "$out/parity_tests.txt"
+  for module in gaussian distortion watermark plugin; do
+    "$build/tests/watergs_${module}_test" --gtest_filter='*Cuda*:*CUDA*' \
+      >> "$out/parity_tests.txt" 2>&1 || rc=1
+  done
+  grep -E "^\[  (PASSED|FAILED|SKIPPED) |^\[  FAILED  \]" "$out/parity_tests.txt" | tail -40
+  return $rc
+}
+
+# Memory errors, shared-memory races and sync errors in the kernels the
 # parity tests exercise hardest (multi-batch tiles, crops, empty models).
-if command -v compute-sanitizer >/dev/null 2>&1; then
+stage_sanitize() {
+  local rc=0 tool
+  command -v compute-sanitizer >/dev/null 2>&1 || { echo "no compute-sanitizer"; return 0; }
   for tool in memcheck racecheck synccheck; do
     compute-sanitizer --tool "$tool" --error-exitcode 9 \
       "$build/tests/watergs_gaussian_test" --gtest_filter='CudaRasterizer.DeepTileStackMatchesCpu:CudaRasterizer.CropRectsMatchCpu:CudaRasterizer.EmptyModelRendersBackground:CudaRasterizer.ShDegreeZeroModelMatchesCpu' \
-      > "$out/sanitizer_$tool.txt" 2>&1 || { status=1; echo "compute-sanitizer $tool: errors (see sanitizer_$tool.txt)"; }
+      > "$out/sanitizer_$tool.txt" 2>&1 || { rc=1; echo "compute-sanitizer $tool: errors (sanitizer_$tool.txt)"; }
   done
-fi
-demo=datasets_scripts/demo_scene
-{
-  "$build/benchmarks/raster_benchmark" --device cuda --threads "$(nproc)"
-  "$build/benchmarks/raster_benchmark" --device cuda --scenes 1000 --repeats 9
-  "$build/benchmarks/raster_benchmark" --device cpu --threads "$(nproc)" --scenes 100
-  "$build/benchmarks/train_benchmark" --device cuda --json "$out/train_cuda.json"
-  "$build/benchmarks/train_benchmark" --device cpu --json "$out/train_cpu.json"
-  "$build/benchmarks/decoder_benchmark" --device cuda 5
-} > "$out/benchmarks.txt" 2>&1
-tail -40 "$out/benchmarks.txt"
+  return $rc
+}
+
+stage_bench() {
+  {
+    "$build/benchmarks/raster_benchmark" --device cuda --threads "$(nproc)"
+    "$build/benchmarks/raster_benchmark" --device cuda --scenes 1000 --repeats 9
+    "$build/benchmarks/train_benchmark" --device cuda --json "$out/train_cuda.json"
+    "$build/benchmarks/decoder_benchmark" --device cuda 5
+  } > "$out/benchmarks.txt" 2>&1
+  tail -40 "$out/benchmarks.txt"
+}
+
+for stage in $stages; do
+  echo "== $stage"
+  "stage_$stage" || status=1
+done
 exit $status
