@@ -241,6 +241,72 @@ TEST(CudaEncoderTest, ForwardMatchesCpuInBothModes) {
   }
 }
 
+// Both networks' backward passes on their own (no optimiser, no noise):
+// every parameter gradient and the decoder's image gradient, in training
+// and inference mode. A conv bias before a training-mode BatchNorm has
+// gradient 0 up to rounding (BN removes the mean), so it is compared at the
+// scale of its conv weight gradient.
+TEST(CudaHiddenBackwardTest, EveryGradientMatchesCpuInBothModes) {
+  WATERGS_REQUIRE_CUDA();
+  const HiddenConfig config = TinyConfig();
+  for (bool training : {false, true}) {
+    std::mt19937 rng(59);
+    HiddenModel model(config, true, 19);
+    RandomizeRunningStatistics(&model, &rng);
+    CudaNnContext context;
+    CudaHiddenModel gpu(&context, model);
+    const Tensor cover = RandomCover(3, 9, 11, &rng);
+    std::vector<float> message(3 * config.num_bits);
+    for (size_t i = 0; i < message.size(); ++i) message[i] = i % 4 ? 1.f : -1.f;
+    Tensor dwatermarked(3, 3, 9, 11), dlogits(3, config.num_bits, 1, 1);
+    for (Tensor* t : {&dwatermarked, &dlogits})
+      t->data = RandomVector(t->size(), &rng);
+    DeviceTensor cover_gpu, dwatermarked_gpu, dlogits_gpu;
+    cover_gpu.Upload(cover);
+    dwatermarked_gpu.Upload(dwatermarked);
+    dlogits_gpu.Upload(dlogits);
+    DeviceBuffer<float> message_gpu;
+    message_gpu.Upload(message);
+
+    // Encoder: forward, backward to its weights.
+    model.encoder->Forward(cover, message, training);
+    model.encoder->Backward(dwatermarked, training);
+    gpu.encoder->Forward(cover_gpu, message_gpu, training);
+    gpu.encoder->Backward(dwatermarked_gpu, training);
+    // Decoder on the cover: weights and image gradient.
+    Tensor dimage;
+    DeviceTensor dimage_gpu;
+    model.decoder->Forward(cover, training);
+    model.decoder->Backward(dlogits, &dimage, true, training);
+    gpu.decoder->Forward(cover_gpu, training);
+    gpu.decoder->Backward(dlogits_gpu, &dimage_gpu, true, training);
+    Tensor dimage_host;
+    dimage_gpu.Download(&dimage_host);
+    const std::string mode = training ? " (training)" : " (inference)";
+    ExpectClose(dimage_host.data, dimage.data, 1e-3, "decoder dimage" + mode);
+
+    HiddenModel copy(config, true, 19);
+    gpu.CopyToHost(&copy);
+    const std::vector<Parameter*> cpu_params = model.AllParameters();
+    const std::vector<Parameter*> gpu_params = copy.AllParameters();
+    ASSERT_EQ(gpu_params.size(), cpu_params.size());
+    for (size_t k = 0; k < cpu_params.size(); ++k) {
+      const Parameter& c = *cpu_params[k];
+      if (!c.trainable) continue;
+      const bool bias_before_bn =
+          training && c.name.find(".conv.bias") != std::string::npos;
+      const double scale =
+          bias_before_bn ? MaxAbs(cpu_params[k - 1]->grad) : MaxAbs(c.grad);
+      // A real gradient (all zeros on both sides would prove nothing).
+      if (!bias_before_bn) {
+        EXPECT_GT(MaxAbs(c.grad), 0.0) << c.name << mode;
+      }
+      ExpectCloseToScale(gpu_params[k]->grad, c.grad, 1e-3, scale,
+                         c.name + " gradient" + mode);
+    }
+  }
+}
+
 class CudaTrainStepTest : public ::testing::TestWithParam<NoiseKind> {};
 
 // One TrainStep on the CPU and one CudaDecoderTrainer step from the same

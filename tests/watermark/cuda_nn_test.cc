@@ -341,7 +341,7 @@ TEST(CudaLossTest, MseMatchesCpu) {
   ExpectClose(ToHost(da_gpu), da.data, 1e-6, "mse gradient");
 }
 
-TEST(CudaAdamTest, StepsMatchCpu) {
+TEST(CudaNetworkAdamTest, StepsMatchCpu) {
   WATERGS_REQUIRE_CUDA();
   std::mt19937 rng(29);
   Parameter weight("w", {4, 9}), bias("b", {4}), buffer("r", {4}, false);
@@ -349,7 +349,7 @@ TEST(CudaAdamTest, StepsMatchCpu) {
     Randomize(&p->value, &rng, -1.f, 1.f);
   CudaParameter weight_gpu(weight), bias_gpu(bias), buffer_gpu(buffer);
   NetworkAdam cpu({&weight, &bias, &buffer}, 1e-2f);
-  CudaAdam gpu({&weight_gpu, &bias_gpu, &buffer_gpu}, 1e-2f);
+  CudaNetworkAdam gpu({&weight_gpu, &bias_gpu, &buffer_gpu}, 1e-2f);
   for (int step = 0; step < 3; ++step) {
     cpu.ZeroGrad();
     gpu.ZeroGrad();
@@ -365,6 +365,9 @@ TEST(CudaAdamTest, StepsMatchCpu) {
   ExpectClose(ToHost(bias_gpu.value), bias.value, 1e-6, "adam bias");
   ExpectClose(ToHost(gpu.m[0]), cpu.m[0], 1e-6, "adam first moment");
   ExpectClose(ToHost(gpu.v[0]), cpu.v[0], 1e-6, "adam second moment");
+  ExpectClose(ToHost(gpu.m[1]), cpu.m[1], 1e-6, "adam bias first moment");
+  ExpectClose(ToHost(gpu.v[1]), cpu.v[1], 1e-6, "adam bias second moment");
+  EXPECT_EQ(gpu.m[2].size(), 0u);  // no moments for buffers
   // Buffers are never optimised.
   EXPECT_EQ(ToHost(buffer_gpu.value), buffer.value);
 }

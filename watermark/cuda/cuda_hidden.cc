@@ -286,6 +286,9 @@ void CudaDecoder::ForwardIfNeeded(const ImageRGB& image) {
       std::memcmp(cached_pixels_.data(), image.data.data(),
                   count * sizeof(float)) == 0)
     return;
+  // Invalid until the pass below completes: a failed pass must not leave
+  // the old logits answering for the new image.
+  has_forward_ = false;
   cached_pixels_.assign(image.data.begin(), image.data.end());
   cached_width_ = image.width;
   cached_height_ = image.height;

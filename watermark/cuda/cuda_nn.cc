@@ -14,8 +14,11 @@ namespace {
 const float kOne = 1.f, kZero = 0.f;
 
 // The first usable algorithm of a _v7 result list (best first): status
-// success, workspace within the limit, no TF32 unless allowed; a
-// deterministic one when any qualifies, so repeated runs agree bit for bit.
+// success, workspace within the limit, no TF32 unless allowed, never a
+// down-converting one (ALLOW_CONVERSION computes FP32 tensors in FP16:
+// overflow above 65504, underflow of small gradients, even when TF32 is
+// allowed); a deterministic one when any qualifies, so repeated runs agree
+// bit for bit.
 template <typename Perf>
 const Perf& PickAlgorithm(const std::vector<Perf>& perfs, int count,
                           bool allow_tf32, size_t limit, const char* what) {
@@ -23,10 +26,8 @@ const Perf& PickAlgorithm(const std::vector<Perf>& perfs, int count,
     for (int i = 0; i < count; ++i) {
       const Perf& perf = perfs[i];
       if (perf.status != CUDNN_STATUS_SUCCESS || perf.memory > limit) continue;
-      if (!allow_tf32 &&
-          (perf.mathType == CUDNN_TENSOR_OP_MATH ||
-           perf.mathType == CUDNN_TENSOR_OP_MATH_ALLOW_CONVERSION))
-        continue;
+      if (perf.mathType == CUDNN_TENSOR_OP_MATH_ALLOW_CONVERSION) continue;
+      if (!allow_tf32 && perf.mathType == CUDNN_TENSOR_OP_MATH) continue;
       if (need_deterministic && perf.determinism != CUDNN_DETERMINISTIC)
         continue;
       return perf;
@@ -486,7 +487,7 @@ double CudaMseLoss(const DeviceTensor& a, const DeviceTensor& b,
   return CudaAddMseGradient(a, b, 1.f, da);
 }
 
-CudaAdam::CudaAdam(std::vector<CudaParameter*> params, float lr)
+CudaNetworkAdam::CudaNetworkAdam(std::vector<CudaParameter*> params, float lr)
     : learning_rate(lr), params_(std::move(params)) {
   for (const CudaParameter* p : params_) {
     const size_t n = p->trainable ? p->size() : 0;
@@ -497,11 +498,11 @@ CudaAdam::CudaAdam(std::vector<CudaParameter*> params, float lr)
   }
 }
 
-void CudaAdam::ZeroGrad() {
+void CudaNetworkAdam::ZeroGrad() {
   for (CudaParameter* p : params_) p->grad.Zero();
 }
 
-void CudaAdam::Step() {
+void CudaNetworkAdam::Step() {
   // The CPU's constants, computed the same way (double, then float).
   constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEps = 1e-8;
   ++step;
@@ -524,13 +525,15 @@ void CudaAdam::Step() {
   }
 }
 
-void CudaAdam::CopyFrom(const NetworkAdam& host) {
+void CudaNetworkAdam::CopyFrom(const NetworkAdam& host) {
   if (host.m.size() != params_.size())
-    Fail("CudaAdam: the host optimiser has " + std::to_string(host.m.size()) +
-         " parameters, the device one " + std::to_string(params_.size()));
+    Fail("CudaNetworkAdam: the host optimiser has " +
+         std::to_string(host.m.size()) + " parameters, the device one " +
+         std::to_string(params_.size()));
   for (size_t i = 0; i < params_.size(); ++i) {
     if (host.m[i].size() != m[i].size() || host.v[i].size() != v[i].size())
-      Fail("CudaAdam: moments of " + params_[i]->name + " differ in size");
+      Fail("CudaNetworkAdam: moments of " + params_[i]->name +
+           " differ in size");
     m[i].Upload(host.m[i]);
     v[i].Upload(host.v[i]);
   }
@@ -538,10 +541,11 @@ void CudaAdam::CopyFrom(const NetworkAdam& host) {
   step = host.step;
 }
 
-void CudaAdam::CopyToHost(NetworkAdam* host) const {
+void CudaNetworkAdam::CopyToHost(NetworkAdam* host) const {
   if (host->m.size() != params_.size())
-    Fail("CudaAdam: the host optimiser has " + std::to_string(host->m.size()) +
-         " parameters, the device one " + std::to_string(params_.size()));
+    Fail("CudaNetworkAdam: the host optimiser has " +
+         std::to_string(host->m.size()) + " parameters, the device one " +
+         std::to_string(params_.size()));
   for (size_t i = 0; i < params_.size(); ++i) {
     m[i].Download(&host->m[i]);
     v[i].Download(&host->v[i]);
