@@ -318,8 +318,10 @@ void Trainer::FailAllPruned(int64_t it) {
 // (MayChangeModel: for Inria's ADC the densification iterations, every 100,
 // and opacity resets) the model and Adam moments come down first and go
 // back up after. That round trip is ~710 bytes per Gaussian each way at SH
-// degree 3 (59 parameters and 2 x 59 moments): ~0.7 GB, ~100 ms at 1M
-// Gaussians every 100 iterations, ~1 ms per iteration amortised.
+// degree 3 (59 parameters and 2 x 59 moments): ~0.7 GB each way at 1M
+// Gaussians, ~100 ms with the host densification (estimated from PCIe
+// rates, not measured) every 100 iterations: ~1 ms per iteration amortised.
+// Other iterations move 5 bytes per Gaussian down (9 with radii).
 IterationStats Trainer::StepOnDevice(int64_t it, size_t view,
                                      const RenderCamera& camera,
                                      const RenderOptions& render_options,

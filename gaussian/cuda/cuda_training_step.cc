@@ -112,6 +112,12 @@ void CudaTrainingStep::PushIfStale() {
     rejected_base_ = a.rejected_total();
     device_adam_stale_ = false;
   }
+  // A host edit that resized the model without its optimiser state.
+  if (adam_.size() != count_) {
+    Fail("training on the GPU: optimiser state for " +
+         std::to_string(adam_.size()) + " Gaussians, model has " +
+         std::to_string(count_));
+  }
 }
 
 CudaModelArrays CudaTrainingStep::ModelArrays() const {
