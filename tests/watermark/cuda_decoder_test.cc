@@ -151,6 +151,28 @@ TEST(CudaDecoderTest, ShippedDecoderMatchesCpu) {
   ExpectDecodersAgree(cpu, gpu, 64, 48, &rng);
 }
 
+// The TF32 path (cuDNN algorithms rated under default math, cuBLAS TF32
+// mode) runs and stays close. TF32 keeps 10 mantissa bits: each input and
+// weight is rounded by up to 2^-11 relative, so a convolution's output is
+// off by ~1e-3 of its scale; compounded over the 9 layers (inference-mode
+// BatchNorm does not renormalise), 2e-2 of the largest logit is a bound;
+// the input gradient also passes 9 TF32 backward convolutions and ReLU
+// masks that forward noise may flip near 0, hence 5e-2. A wrong layer or
+// algorithm is off by the values' whole size.
+TEST(CudaDecoderTest, ShippedDecoderWithTf32IsClose) {
+  WATERGS_REQUIRE_CUDA();
+  std::mt19937 rng(33);
+  Decoder cpu = Decoder::Load(kShippedDecoder, 48);
+  CudaDecoder gpu = CudaDecoder::Load(kShippedDecoder, 48, true);
+  const ImageRGB image = TestImage(64, 48, &rng);
+  const std::vector<float> logits = cpu.Logits(image);
+  ExpectClose(gpu.Logits(image), logits, 2e-2, "TF32 logits");
+  const std::vector<float> dlogits = RandomVector(logits.size(), &rng);
+  ExpectClose(gpu.InputGradient(image, dlogits).data,
+              cpu.InputGradient(image, dlogits).data, 5e-2,
+              "TF32 input gradient");
+}
+
 TEST(CudaDecoderTest, TinyRandomDecoderMatchesCpu) {
   WATERGS_REQUIRE_CUDA();
   std::mt19937 rng(37);

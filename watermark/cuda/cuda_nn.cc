@@ -433,6 +433,10 @@ void CudaLinear::Forward(const DeviceTensor& x, DeviceTensor* y) {
 
 void CudaLinear::Backward(const DeviceTensor& x, const DeviceTensor& dy,
                           DeviceTensor* dx, bool weight_grads) {
+  // cuBLAS reads x.n rows of each: a mismatch would read past the buffers.
+  if (x.c * x.h * x.w != in_ || dy.n != x.n || dy.c * dy.h * dy.w != out_)
+    Fail("CudaLinear " + weight.name + ": input or output gradient shape " +
+         "mismatch");
   if (dx) {
     dx->ResizeLike(x);
     // dX^T [in, N] = W^T [in, out] dY^T [out, N].
