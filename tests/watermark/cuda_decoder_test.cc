@@ -26,6 +26,7 @@
 #include <iterator>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gaussian/error.h"
@@ -182,6 +183,31 @@ TEST(CudaDecoderTest, TinyRandomDecoderMatchesCpu) {
   CudaDecoder gpu(model);
   ExpectDecodersAgree(cpu, gpu, 9, 7, &rng);
   ExpectDecodersAgree(cpu, gpu, 1, 1, &rng);
+}
+
+// A decoder moved after a forward pass (its network kept a pointer to the
+// source's input) gives the same gradients once the source is gone, by
+// move construction and by move assignment.
+TEST(CudaDecoderTest, MovedDecoderGivesTheSameGradients) {
+  WATERGS_REQUIRE_CUDA();
+  std::mt19937 rng(45);
+  HiddenModel model(TinyConfig(), false, 5);
+  const ImageRGB image = TestImage(9, 7, &rng);
+  const std::vector<float> dlogits = RandomVector(8, &rng);
+  std::vector<float> expected;
+  CudaDecoder moved = [&] {
+    CudaDecoder source(model);
+    expected = source.InputGradient(image, dlogits).data;
+    return CudaDecoder(std::move(source));
+  }();
+  EXPECT_EQ(moved.InputGradient(image, dlogits).data, expected);
+  CudaDecoder assigned(model);
+  {
+    CudaDecoder source(model);
+    source.InputGradient(image, dlogits);
+    assigned = std::move(source);
+  }
+  EXPECT_EQ(assigned.InputGradient(image, dlogits).data, expected);
 }
 
 TEST(CudaDecoderTest, WrongLogitGradientCountIsRefused) {

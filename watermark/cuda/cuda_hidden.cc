@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <utility>
 
 #include "gaussian/cuda/cuda_check.h"
 #include "gaussian/error.h"
@@ -247,8 +248,29 @@ CudaDecoder::CudaDecoder(HiddenModel& model, bool allow_tf32)
     : context_(std::make_unique<CudaNnContext>(allow_tf32)),
       network_(std::make_unique<CudaHiddenDecoder>(context_.get(), model.config,
                                                    *model.decoder)) {}
-CudaDecoder::CudaDecoder(CudaDecoder&&) noexcept = default;
-CudaDecoder& CudaDecoder::operator=(CudaDecoder&&) noexcept = default;
+CudaDecoder::CudaDecoder(CudaDecoder&& other) noexcept {
+  *this = std::move(other);
+}
+
+// Member-wise, except that the cached forward pass is dropped: the network
+// saved a pointer to the source's input_, which a later InputGradient would
+// read (once the source is gone, with garbage shapes).
+CudaDecoder& CudaDecoder::operator=(CudaDecoder&& other) noexcept {
+  network_ = std::move(other.network_);  // before the context it points into
+  context_ = std::move(other.context_);
+  image_ = std::move(other.image_);
+  dimage_ = std::move(other.dimage_);
+  input_ = std::move(other.input_);
+  dlogits_ = std::move(other.dlogits_);
+  dinput_ = std::move(other.dinput_);
+  cached_pixels_ = std::move(other.cached_pixels_);
+  logits_ = std::move(other.logits_);
+  cached_width_ = other.cached_width_;
+  cached_height_ = other.cached_height_;
+  has_forward_ = other.has_forward_ = false;
+  return *this;
+}
+
 CudaDecoder::~CudaDecoder() = default;
 
 int CudaDecoder::NumBits() const { return network_->num_bits(); }
