@@ -230,6 +230,13 @@ void CudaAdam::GatherDevice(const int64_t* index, size_t count) {
       WATERGS_CUDA_CHECK(cudaMemcpy(host.data(), index, count * sizeof(int64_t),
                                     cudaMemcpyDeviceToHost));
     }
+    for (size_t i = 0; i < count; ++i) {
+      if (host[i] >= static_cast<int64_t>(num_gaussians_)) {
+        Fail("CudaAdam::GatherDevice: index " + std::to_string(host[i]) +
+             " at " + std::to_string(i) + " is past the " +
+             std::to_string(num_gaussians_) + " Gaussians");
+      }
+    }
     for (int g = 0; g < kNumParamGroups; ++g) {
       if (masks_[g].empty()) continue;
       std::vector<uint8_t> gathered(count);

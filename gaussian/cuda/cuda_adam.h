@@ -62,7 +62,8 @@ class CudaAdam {
   // Moments follow the Gaussians: Gaussian i afterwards has the moments of
   // Gaussian index[i] before, or zero moments where index[i] < 0 (clones
   // and split children, as Inria's densification does). Masks follow too
-  // (new Gaussians trainable). GatherDevice takes a device index list.
+  // (new Gaussians trainable). GatherDevice takes a device index list,
+  // every entry < size() (checked only when masks bring it to the host).
   void Gather(const std::vector<int64_t>& index);
   void GatherDevice(const int64_t* index, size_t count);
   // Adam's Filter, Append and ResetMoments, on the device.
