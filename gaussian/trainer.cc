@@ -125,52 +125,51 @@ Trainer::Trainer(const TrainerOptions& options, const TrainingViews& views,
   // results, but the model and gradients cross the bus every iteration).
   auto* cuda = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
   if (cuda && !options_.adam.compact_moments && !options_.adam.half_moments) {
-    device_ = std::make_unique<CudaTrainingStep>(
-        cuda, options_.adam, scene_extent_, options_.lambda_dssim, &model_,
-        &adam_);
+    UseDeviceStep([&](GaussianModel* host_model, Adam* host_adam) {
+      return std::make_unique<CudaTrainingStep>(
+          cuda, options_.adam, scene_extent_, options_.lambda_dssim, host_model,
+          host_adam);
+    });
   }
 #endif
 }
 
 Trainer::~Trainer() = default;
 
+void Trainer::UseDeviceStep(const DeviceTrainingStepFactory& make) {
+  SyncToHost();
+  device_ = make(&model_, &adam_);
+}
+
 // The host model_ and adam_ are a cache of the device state on the GPU path:
 // filling them from the const accessors is what `const` promises callers
 // (the state they see is the trainer's), so the device step writes them
 // through the pointers it was given.
 void Trainer::SyncToHost() const {
-#ifdef WATERGS_WITH_CUDA
   if (device_) {
     device_->PullModel();
     device_->PullAdam();
   }
-#endif
 }
 
 const GaussianModel& Trainer::model() const {
-#ifdef WATERGS_WITH_CUDA
   if (device_) device_->PullModel();
-#endif
   return model_;
 }
 
 GaussianModel& Trainer::mutable_model() {
-#ifdef WATERGS_WITH_CUDA
   if (device_) {
     device_->PullModel();
     device_->MarkHostModelEdited();
   }
-#endif
   return model_;
 }
 
 Adam& Trainer::adam() {
-#ifdef WATERGS_WITH_CUDA
   if (device_) {
     device_->PullAdam();
     device_->MarkHostAdamEdited();
   }
-#endif
   return adam_;
 }
 
@@ -232,9 +231,7 @@ IterationStats Trainer::Step() {
   RenderOptions render_options;
   render_options.background = options_.background;
   render_options.active_sh_degree = active_sh_degree_;
-#ifdef WATERGS_WITH_CUDA
   if (device_) return StepOnDevice(it, view, camera, render_options, *truth);
-#endif
   auto t0 = Clock::now();
   const double c0 = ProcessCpuSeconds();
   std::unique_ptr<RenderContext> context;
@@ -310,8 +307,7 @@ void Trainer::FailAllPruned(int64_t it) {
        "or too large)");
 }
 
-#ifdef WATERGS_WITH_CUDA
-// Step on the GPU: the same stages and rules as the host path. Density
+// Step on the device: the same stages and rules as the host path. Density
 // control runs on the host: on iterations where it only accumulates
 // statistics it gets this view's visibility and NDC gradient norms (and
 // radii) and a host model of the right size; where it may change the model
@@ -391,7 +387,6 @@ IterationStats Trainer::StepOnDevice(int64_t it, size_t view,
   elapsed_seconds_ += Seconds(t0, t5);
   return stats;
 }
-#endif
 
 void Trainer::AppendLog(const IterationStats& stats, const EvalResult* test) {
   nlohmann::json j;
@@ -548,13 +543,11 @@ void Trainer::Resume(const std::string& checkpoint_path) {
   elapsed_seconds_ = c.elapsed_seconds;
   last_checkpoint_ = checkpoint_path;
   last_checkpoint_iteration_ = iteration_;
-#ifdef WATERGS_WITH_CUDA
-  // The GPU copies are rebuilt from the restored ones at the next step.
+  // The device copies are rebuilt from the restored ones at the next step.
   if (device_) {
     device_->MarkHostModelEdited();
     device_->MarkHostAdamEdited();
   }
-#endif
   // Keep the log lines the checkpoint covers.
   log_lines_.clear();
   if (!options_.log_path.empty() &&

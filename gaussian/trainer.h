@@ -16,14 +16,12 @@
 #include "gaussian/adam.h"
 #include "gaussian/checkpoint.h"
 #include "gaussian/density_strategy.h"
+#include "gaussian/device_training_step.h"
 #include "gaussian/gaussian_model.h"
 #include "gaussian/loss.h"
 #include "gaussian/rasterizer.h"
 
 namespace watergs {
-
-// The device-resident step (cuda/cuda_training_step.h, CUDA builds only).
-class CudaTrainingStep;
 
 // Cameras and ground-truth images the trainer learns from.
 class TrainingViews {
@@ -146,6 +144,9 @@ class Trainer {
   Adam& adam();
   // Makes the host model and Adam current (GPU path; no-op on the CPU).
   void SyncToHost() const;
+  // Trains through the device step `make` builds from now on (the trainer
+  // does this itself for a CudaRasterizer; tests pass a host emulation).
+  void UseDeviceStep(const DeviceTrainingStepFactory& make);
   Rasterizer& rasterizer() { return *rasterizer_; }
   int64_t iteration() const { return iteration_; }
   int active_sh_degree() const { return active_sh_degree_; }
@@ -162,13 +163,12 @@ class Trainer {
   void AppendLog(const IterationStats& stats, const EvalResult* test);
   [[noreturn]] void FailNonFiniteLoss(int64_t it, double loss, size_t view);
   [[noreturn]] void FailAllPruned(int64_t it);
-#ifdef WATERGS_WITH_CUDA
-  // Step's GPU path from the render on, for view `view` at iteration `it`.
+  // Step's device path from the render on, for view `view` at iteration
+  // `it`.
   IterationStats StepOnDevice(int64_t it, size_t view,
                               const RenderCamera& camera,
                               const RenderOptions& render_options,
                               const ImageRGB& truth);
-#endif
 
   TrainerOptions options_;
   const TrainingViews& views_;
@@ -178,10 +178,8 @@ class Trainer {
   std::unique_ptr<Rasterizer> rasterizer_;
   std::unique_ptr<DensityStrategy> strategy_;
   Adam adam_;
-#ifdef WATERGS_WITH_CUDA
-  // The GPU step mirroring model_ and adam_ (null on the host path).
-  std::unique_ptr<CudaTrainingStep> device_;
-#endif
+  // The device step mirroring model_ and adam_ (null on the host path).
+  std::unique_ptr<DeviceTrainingStep> device_;
   TrainingLoss loss_;
   std::mt19937_64 rng_;
   // Views not yet drawn in the current epoch.

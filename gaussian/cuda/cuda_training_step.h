@@ -5,8 +5,9 @@
 // visibility bytes, NDC gradient norms and (when asked) screen radii come
 // down (5-9 bytes per Gaussian instead of ~0.5 KB each way). The trainer's
 // host model and Adam are a mirror: pulled from the device before anything
-// reads them (Pull*), pushed back after the host edits them (MarkHost*).
-// Host C++ (C++20); only the .cu files it calls must stay C++17.
+// reads them (Pull*), pushed back after the host edits them (MarkHost*);
+// device_training_step.h has the contract. Host C++ (C++20); only the .cu
+// files it calls must stay C++17.
 #pragma once
 
 #include <cstddef>
@@ -20,6 +21,7 @@
 #include "gaussian/cuda/cuda_loss.h"
 #include "gaussian/cuda/cuda_rasterizer_device.h"
 #include "gaussian/cuda/device_buffer.h"
+#include "gaussian/device_training_step.h"
 #include "gaussian/gaussian_model.h"
 #include "gaussian/image.h"
 #include "gaussian/loss.h"
@@ -27,7 +29,7 @@
 
 namespace watergs {
 
-class CudaTrainingStep {
+class CudaTrainingStep : public DeviceTrainingStep {
  public:
   // `rasterizer`, `host_model` and `host_adam` (the trainer's) must outlive
   // this. Float32 moments only (CudaAdam refuses the others). The device
@@ -35,36 +37,24 @@ class CudaTrainingStep {
   CudaTrainingStep(CudaRasterizer* rasterizer, const AdamOptions& adam_options,
                    double scene_extent, double lambda_dssim,
                    GaussianModel* host_model, Adam* host_adam);
-  ~CudaTrainingStep();
+  ~CudaTrainingStep() override;
 
-  // Renders the device model from `camera` and uploads `truth` (HWC, the
-  // render rect's size; Error otherwise). Pushes host edits first.
+  // DeviceTrainingStep. The truth image is uploaded; the radii come from
+  // the CUDA projection. The Adam state mirrored is the moments, step
+  // counts, enabled groups and rejected count; masks set on the host Adam
+  // are not (the trainer sets none).
   void Forward(const RenderCamera& camera, const RenderOptions& options,
-               const ImageRGB& truth);
-  // Loss of the last Forward and its image gradient, on the device.
-  LossTerms Loss();
-  // Backward of the last Forward into the device gradients. `statistics`
-  // (nullable) receives visible and mean2d_grad_norm_ndc (N each) and
-  // `radii` (nullable) the N screen radii of ComputeScreenRadii.
-  void Backward(GaussianGradients* statistics, std::vector<float>* radii);
-  // Adam at 1-based `iteration` on the device model with the device
-  // gradients; the opacity group is left alone when skip_opacity (an
-  // opacity reset replaced it). Returns the rejected count.
-  size_t AdamStep(int64_t iteration, bool skip_opacity);
-  // Waits for the device (stage timings).
-  void Synchronize();
-
-  // Device -> host copies of the model and of the Adam state (moments,
-  // step counts, rejected count) when the host ones are behind. Masks set
-  // on the host Adam are not mirrored (the trainer sets none).
-  void PullModel();
-  void PullAdam();
-  // The host model / Adam were replaced or edited (after a Pull): the
-  // device copies are rebuilt from them before the next use.
-  void MarkHostModelEdited();
-  void MarkHostAdamEdited();
-  // Uploads the host copies the device is behind on.
-  void PushIfStale();
+               const ImageRGB& truth) override;
+  LossTerms Loss() override;
+  void Backward(GaussianGradients* statistics,
+                std::vector<float>* radii) override;
+  size_t AdamStep(int64_t iteration, bool skip_opacity) override;
+  void Synchronize() override;
+  void PullModel() override;
+  void PullAdam() override;
+  void MarkHostModelEdited() override;
+  void MarkHostAdamEdited() override;
+  void PushIfStale() override;
 
  private:
   // The device model as the rasterizer reads it.

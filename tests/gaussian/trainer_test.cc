@@ -18,8 +18,11 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "gaussian/cpu_rasterizer.h"
 #include "gaussian/device.h"
+#include "gaussian/device_training_step.h"
 #include "gaussian/error.h"
+#include "gaussian/projection.h"
 #include "tests/common/backend_parity.h"
 #include "tests/common/cuda_test.h"
 #include "tests/common/look_at.h"
@@ -113,6 +116,113 @@ class NanAfter : public Rasterizer {
   int n_, calls_ = 0;
   std::unique_ptr<Rasterizer> inner_;
 };
+
+// A device step emulated on the host: its "device" model and Adam are
+// separate copies that meet the trainer's only through Pull and Push, with
+// the CPU rasterizer, loss and Adam doing what the CUDA kernels do. A run
+// through it equals the host run bit for bit exactly when the trainer syncs
+// at the right points (a stale read or a lost edit changes the result).
+class EmulatedDeviceStep : public DeviceTrainingStep {
+ public:
+  EmulatedDeviceStep(GaussianModel* host_model, Adam* host_adam)
+      : host_model_(host_model), host_adam_(host_adam), adam_(*host_adam) {
+    grads_.compact_sh = true;
+  }
+  void Forward(const RenderCamera& camera, const RenderOptions& options,
+               const ImageRGB& truth) override {
+    PushIfStale();
+    camera_ = camera;
+    truth_ = truth;
+    rasterizer_.Forward(model_, camera, options, &render_, &context_);
+  }
+  LossTerms Loss() override {
+    return loss_.Evaluate(render_, truth_, &grad_image_);
+  }
+  void Backward(GaussianGradients* statistics,
+                std::vector<float>* radii) override {
+    rasterizer_.Backward(model_, *context_, grad_image_, &grads_);
+    context_.reset();
+    if (radii) ComputeScreenRadii(model_, camera_, grads_.visible, radii);
+    if (statistics) {
+      *statistics = GaussianGradients{};
+      statistics->visible = grads_.visible;
+      statistics->mean2d_grad_norm_ndc = grads_.mean2d_grad_norm_ndc;
+    }
+  }
+  size_t AdamStep(int64_t iteration, bool skip_opacity) override {
+    adam_.SetIteration(iteration);
+    const bool enabled = adam_.GroupEnabled(ParamGroup::kOpacity);
+    if (skip_opacity) adam_.SetGroupEnabled(ParamGroup::kOpacity, false);
+    const size_t rejected = adam_.Step(grads_, &model_);
+    adam_.SetGroupEnabled(ParamGroup::kOpacity, enabled);
+    host_model_stale_ = host_adam_stale_ = true;
+    ++steps;
+    return rejected;
+  }
+  void Synchronize() override {}
+  void PullModel() override {
+    if (host_model_stale_) *host_model_ = model_, ++pulls;
+    host_model_stale_ = false;
+  }
+  void PullAdam() override {
+    if (host_adam_stale_) *host_adam_ = adam_, ++pulls;
+    host_adam_stale_ = false;
+  }
+  void MarkHostModelEdited() override {
+    host_model_stale_ = false;
+    device_model_stale_ = true;
+  }
+  void MarkHostAdamEdited() override {
+    host_adam_stale_ = false;
+    device_adam_stale_ = true;
+  }
+  void PushIfStale() override {
+    if (device_model_stale_) model_ = *host_model_, ++pushes;
+    if (device_adam_stale_) adam_ = *host_adam_, ++pushes;
+    device_model_stale_ = device_adam_stale_ = false;
+  }
+
+  // Transfers and steps so far (all instances).
+  static inline int pulls = 0, pushes = 0, steps = 0;
+
+ private:
+  GaussianModel* host_model_;
+  Adam* host_adam_;
+  bool host_model_stale_ = false, host_adam_stale_ = false;
+  bool device_model_stale_ = true, device_adam_stale_ = true;
+  GaussianModel model_;
+  Adam adam_;
+  CpuRasterizer rasterizer_;
+  TrainingLoss loss_{0.2};
+  RenderCamera camera_;
+  ImageRGB truth_, render_, grad_image_;
+  std::unique_ptr<RenderContext> context_;
+  GaussianGradients grads_;
+};
+
+std::unique_ptr<DeviceTrainingStep> MakeEmulatedStep(GaussianModel* model,
+                                                     Adam* adam) {
+  return std::make_unique<EmulatedDeviceStep>(model, adam);
+}
+
+void ExpectSameState(Trainer& a, Trainer& b) {
+  ASSERT_EQ(a.model().size(), b.model().size());
+  EXPECT_EQ(a.model().means, b.model().means);
+  EXPECT_EQ(a.model().log_scales, b.model().log_scales);
+  EXPECT_EQ(a.model().quats, b.model().quats);
+  EXPECT_EQ(a.model().opacity_logits, b.model().opacity_logits);
+  EXPECT_EQ(a.model().sh_dc, b.model().sh_dc);
+  EXPECT_EQ(a.model().sh_rest, b.model().sh_rest);
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    const ParamGroup group = static_cast<ParamGroup>(g);
+    EXPECT_EQ(a.adam().state(group).exp_avg, b.adam().state(group).exp_avg)
+        << GroupName(group);
+    EXPECT_EQ(a.adam().state(group).exp_avg_sq,
+              b.adam().state(group).exp_avg_sq)
+        << GroupName(group);
+    EXPECT_EQ(a.adam().state(group).step, b.adam().state(group).step);
+  }
+}
 
 TEST(Trainer, LossDecreases) {
   Scene s = MakeScene();
@@ -317,6 +427,74 @@ TEST(Trainer, StateBytesPerGaussianCountsEveryBuffer) {
   // opacity floats and 6 factors of the SH gradient.
   const size_t params = 23 * 4;
   EXPECT_GE(trainer.StateBytesPerGaussian(), 3 * params + (11 + 6) * 4);
+}
+
+// The device path's sync protocol, on the host emulation: a run with
+// densification, opacity resets, held-out evaluation and checkpoints equals
+// the host run bit for bit (model, moments, log), and the model crosses
+// between host and device only at densification/reset iterations,
+// evaluations and checkpoints, not every iteration.
+TEST(TrainerDeviceProtocol, EmulatedDeviceRunEqualsTheHostRun) {
+  Scene s = MakeScene();
+  const std::string dir = TempDir("emulated");
+  TrainerOptions o = SmallRun(40);
+  o.log_every = 1;
+  o.test_views = {0, 3};
+  o.test_iterations = {18, 25, 40};
+  o.checkpoint_every = 15;
+  o.checkpoint_path = dir + "/host.ckpt";
+  Trainer host(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  host.Run();
+  o.checkpoint_path = dir + "/device.ckpt";
+  Trainer device(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  device.UseDeviceStep(MakeEmulatedStep);
+  EmulatedDeviceStep::pulls = EmulatedDeviceStep::pushes = 0;
+  EmulatedDeviceStep::steps = 0;
+  device.Run();
+  EXPECT_GT(EmulatedDeviceStep::steps, 30);
+  // Model and moments come up and go back at the densification and reset
+  // iterations (6, 12, 18, 24, 30), the model comes up for the three
+  // evaluations and both for the two checkpoints, and both go down once at
+  // the start: far fewer transfers than iterations.
+  EXPECT_LE(EmulatedDeviceStep::pulls, 2 * 5 + 3 + 2 * 2);
+  EXPECT_LE(EmulatedDeviceStep::pushes, 2 + 2 * 5);
+  EXPECT_GE(EmulatedDeviceStep::pushes, 2 + 2 * 5);
+  ASSERT_NE(host.model().size(), s.init.size());
+  ExpectSameState(host, device);
+  EXPECT_EQ(host.log_lines().size(), device.log_lines().size());
+  for (size_t i = 0; i < host.log_lines().size(); ++i) {
+    auto a = nlohmann::json::parse(host.log_lines()[i]);
+    auto b = nlohmann::json::parse(device.log_lines()[i]);
+    a.erase("seconds"), b.erase("seconds");
+    EXPECT_EQ(a, b) << "log line " << i;
+  }
+  // The checkpoints hold the same state (a stale host copy would not).
+  const TrainingCheckpoint a = ReadCheckpoint(dir + "/host.ckpt");
+  const TrainingCheckpoint b = ReadCheckpoint(dir + "/device.ckpt");
+  EXPECT_EQ(a.iteration, 30);
+  EXPECT_EQ(a.model.means, b.model.means);
+  EXPECT_EQ(a.adam[0].exp_avg_sq, b.adam[0].exp_avg_sq);
+  EXPECT_EQ(a.density_state, b.density_state);
+}
+
+// Resuming a device-path trainer pushes the restored state to the device:
+// the resumed run ends where an uninterrupted host run does.
+TEST(TrainerDeviceProtocol, EmulatedDeviceResumeEqualsTheHostRun) {
+  Scene s = MakeScene();
+  const std::string dir = TempDir("emulated_resume");
+  TrainerOptions o = SmallRun(40);
+  Trainer host(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  host.Run();
+  Trainer first(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  first.UseDeviceStep(MakeEmulatedStep);
+  for (int i = 0; i < 20; ++i) first.Step();
+  first.SaveCheckpoint(dir + "/run.ckpt");
+  Trainer resumed(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  resumed.UseDeviceStep(MakeEmulatedStep);
+  resumed.Step();  // the device now holds a state the resume must replace
+  resumed.Resume(dir + "/run.ckpt");
+  resumed.Run();
+  ExpectSameState(host, resumed);
 }
 
 // Training steps with the CUDA rasterizer equal the CPU trainer's: the same
