@@ -33,7 +33,7 @@ double BatchPsnr(const Tensor& cover, const Tensor& watermarked) {
 
 }  // namespace
 
-StepResult CudaTrainStep(CudaHiddenModel& model, CudaAdam& adam,
+StepResult CudaTrainStep(CudaHiddenModel& model, CudaNetworkAdam& adam,
                          ImageNoise& noise, NoiseKind kind,
                          const DeviceTensor& cover,
                          const std::vector<float>& targets, float image_weight,
@@ -82,8 +82,8 @@ CudaDecoderTrainer::CudaDecoderTrainer(HiddenModel& model,
     : context_(std::make_unique<CudaNnContext>(allow_tf32)),
       model_(std::make_unique<CudaHiddenModel>(context_.get(), model)) {
   if (!model_->encoder) Fail("CudaDecoderTrainer: the model has no encoder");
-  adam_ =
-      std::make_unique<CudaAdam>(model_->AllParameters(), adam.learning_rate);
+  adam_ = std::make_unique<CudaNetworkAdam>(model_->AllParameters(),
+                                            adam.learning_rate);
   adam_->CopyFrom(adam);
 }
 

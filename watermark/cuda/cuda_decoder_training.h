@@ -33,7 +33,7 @@ struct CudaStepBuffers {
 // bits (0/1), noise `kind` (drawn from rng as the CPU does), loss
 // image_weight * MSE + BCE, backward through decoder, noise and encoder,
 // one Adam update. The model needs its encoder.
-StepResult CudaTrainStep(CudaHiddenModel& model, CudaAdam& adam,
+StepResult CudaTrainStep(CudaHiddenModel& model, CudaNetworkAdam& adam,
                          ImageNoise& noise, NoiseKind kind,
                          const DeviceTensor& cover,
                          const std::vector<float>& targets, float image_weight,
@@ -60,7 +60,7 @@ class CudaDecoderTrainer {
   // The handles first: the layers point into them.
   std::unique_ptr<CudaNnContext> context_;
   std::unique_ptr<CudaHiddenModel> model_;
-  std::unique_ptr<CudaAdam> adam_;
+  std::unique_ptr<CudaNetworkAdam> adam_;
   // Uploaded batch and step buffers.
   DeviceTensor cover_;
   CudaStepBuffers buffers_;

@@ -317,10 +317,4 @@ class CudaNetworkAdam {
   std::vector<CudaParameter*> params_;
 };
 
-// Transitional spelling for watermark/cuda/cuda_decoder_training.*: an alias
-// changes no symbol name, so it no longer collides with gaussian's class at
-// link time. Remove once that code says CudaNetworkAdam (a file including
-// both this header and gaussian/cuda/cuda_adam.h cannot compile with it).
-using CudaAdam = CudaNetworkAdam;
-
 }  // namespace watergs
