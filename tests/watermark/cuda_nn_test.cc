@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -88,6 +89,11 @@ void ExpectClose(const std::vector<float>& gpu, const std::vector<float>& cpu,
 struct ConvCase {
   int n, in, out, kernel, h, w;
 };
+// How CTest lists a case ("N2_64to64_k3_9x10"), instead of its raw bytes.
+void PrintTo(const ConvCase& c, std::ostream* os) {
+  *os << "N" << c.n << "_" << c.in << "to" << c.out << "_k" << c.kernel << "_"
+      << c.h << "x" << c.w;
+}
 
 class CudaConv2dTest : public ::testing::TestWithParam<ConvCase> {};
 
@@ -159,6 +165,10 @@ TEST(CudaConv2dPlanTest, SeveralInputSizesOnOneLayer) {
 struct BnCase {
   int n, c, h, w;
 };
+// How CTest lists a case ("N3_C64_9x8").
+void PrintTo(const BnCase& c, std::ostream* os) {
+  *os << "N" << c.n << "_C" << c.c << "_" << c.h << "x" << c.w;
+}
 
 class CudaBatchNormTest : public ::testing::TestWithParam<BnCase> {
  protected:
