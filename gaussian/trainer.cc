@@ -214,6 +214,27 @@ size_t Trainer::NextView() {
   return train_views_[view];
 }
 
+namespace {
+
+// Stage times of a step from the wall and CPU clocks read at its six stage
+// boundaries, and what density control did.
+void FillStepStats(const std::array<Clock::time_point, 6>& wall,
+                   const std::array<double, 6>& cpu, const DensityEvent& event,
+                   size_t num_gaussians, IterationStats* stats) {
+  stats->forward_s = Seconds(wall[0], wall[1]);
+  stats->loss_s = Seconds(wall[1], wall[2]);
+  stats->backward_s = Seconds(wall[2], wall[3]);
+  stats->density_s = Seconds(wall[3], wall[4]);
+  stats->adam_s = Seconds(wall[4], wall[5]);
+  for (int k = 0; k < 5; ++k) stats->cpu_s[k] = cpu[k + 1] - cpu[k];
+  stats->num_gaussians = num_gaussians;
+  stats->cloned = event.cloned;
+  stats->split = event.split;
+  stats->pruned = event.pruned;
+}
+
+}  // namespace
+
 IterationStats Trainer::Step() {
   const int64_t it = iteration_ + 1;
   IterationStats stats;
@@ -272,16 +293,8 @@ IterationStats Trainer::Step() {
   }
   auto t5 = Clock::now();
   const double c5 = ProcessCpuSeconds();
-  stats.forward_s = Seconds(t0, t1);
-  stats.loss_s = Seconds(t1, t2);
-  stats.backward_s = Seconds(t2, t3);
-  stats.density_s = Seconds(t3, t4);
-  stats.adam_s = Seconds(t4, t5);
-  stats.cpu_s = {c1 - c0, c2 - c1, c3 - c2, c4 - c3, c5 - c4};
-  stats.num_gaussians = model_.size();
-  stats.cloned = event.cloned;
-  stats.split = event.split;
-  stats.pruned = event.pruned;
+  FillStepStats({t0, t1, t2, t3, t4, t5}, {c0, c1, c2, c3, c4, c5}, event,
+                model_.size(), &stats);
   iteration_ = it;
   elapsed_seconds_ += Seconds(t0, t5);
   return stats;
@@ -373,16 +386,8 @@ IterationStats Trainer::StepOnDevice(int64_t it, size_t view,
   }
   auto t5 = Clock::now();
   const double c5 = ProcessCpuSeconds();
-  stats.forward_s = Seconds(t0, t1);
-  stats.loss_s = Seconds(t1, t2);
-  stats.backward_s = Seconds(t2, t3);
-  stats.density_s = Seconds(t3, t4);
-  stats.adam_s = Seconds(t4, t5);
-  stats.cpu_s = {c1 - c0, c2 - c1, c3 - c2, c4 - c3, c5 - c4};
-  stats.num_gaussians = model_.size();
-  stats.cloned = event.cloned;
-  stats.split = event.split;
-  stats.pruned = event.pruned;
+  FillStepStats({t0, t1, t2, t3, t4, t5}, {c0, c1, c2, c3, c4, c5}, event,
+                model_.size(), &stats);
   iteration_ = it;
   elapsed_seconds_ += Seconds(t0, t5);
   return stats;
