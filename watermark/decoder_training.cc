@@ -36,27 +36,6 @@ void RandomMessages(int n, int bits, std::mt19937* rng,
   }
 }
 
-// Fraction of logits whose sign matches the target bit.
-double BitAccuracy(const Tensor& logits, const std::vector<float>& targets) {
-  size_t correct = 0;
-  for (size_t i = 0; i < logits.size(); ++i)
-    correct += (logits.data[i] > 0.f) == (targets[i] > 0.5f);
-  return double(correct) / double(logits.size());
-}
-
-// PSNR (dB) between two [-1,1] batches seen as [0,1] images, the second
-// clamped to the valid range.
-double BatchPsnr(const Tensor& cover, const Tensor& watermarked) {
-  double sum = 0.0;
-  for (size_t i = 0; i < cover.size(); ++i) {
-    const double d =
-        (std::clamp(watermarked.data[i], -1.f, 1.f) - cover.data[i]) * 0.5;
-    sum += d * d;
-  }
-  const double mse = std::max(sum / double(cover.size()), 1e-12);
-  return -10.0 * std::log10(mse);
-}
-
 void SaveCheckpoint(const std::string& path, HiddenModel& model,
                     const NetworkAdam& adam, int64_t step, float image_weight,
                     float psnr_target, const DecoderTrainingOptions& options) {
@@ -185,6 +164,24 @@ void CheckDevice(const DecoderTrainingOptions& options) {
 }
 
 }  // namespace
+
+double BitAccuracy(const Tensor& logits, const std::vector<float>& targets) {
+  size_t correct = 0;
+  for (size_t i = 0; i < logits.size(); ++i)
+    correct += (logits.data[i] > 0.f) == (targets[i] > 0.5f);
+  return double(correct) / double(logits.size());
+}
+
+double BatchPsnr(const Tensor& cover, const Tensor& watermarked) {
+  double sum = 0.0;
+  for (size_t i = 0; i < cover.size(); ++i) {
+    const double d =
+        (std::clamp(watermarked.data[i], -1.f, 1.f) - cover.data[i]) * 0.5;
+    sum += d * d;
+  }
+  const double mse = std::max(sum / double(cover.size()), 1e-12);
+  return -10.0 * std::log10(mse);
+}
 
 float NextPsnrTarget(const DecoderTrainingOptions& options, int64_t step,
                      double running_accuracy, float current) {

@@ -97,6 +97,12 @@ ValidationResult Validate(HiddenModel& model,
 // One line per figure, e.g. "psnr 34.1 dB | identity 99.3% | crop 97.1% ...".
 std::string FormatValidation(const ValidationResult& result);
 
+// Fraction of logits [N,L] whose sign matches the target bit (0/1).
+double BitAccuracy(const Tensor& logits, const std::vector<float>& targets);
+// PSNR (dB) between two [-1,1] batches seen as [0,1] images, the second
+// clamped to the valid range.
+double BatchPsnr(const Tensor& cover, const Tensor& watermarked);
+
 // Reusable buffers of TrainStep.
 struct StepBuffers {
   // Decoder input, gradients of logits, of the decoder input, of the

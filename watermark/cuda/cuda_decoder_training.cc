@@ -8,30 +8,6 @@
 #include "gaussian/error.h"
 
 namespace watergs {
-namespace {
-
-// As decoder_training.cc: fraction of logits whose sign matches the bit.
-double BitAccuracy(const Tensor& logits, const std::vector<float>& targets) {
-  size_t correct = 0;
-  for (size_t i = 0; i < logits.size(); ++i)
-    correct += (logits.data[i] > 0.f) == (targets[i] > 0.5f);
-  return double(correct) / double(logits.size());
-}
-
-// As decoder_training.cc: PSNR of [-1,1] batches seen as [0,1] images, the
-// watermarked one clamped.
-double BatchPsnr(const Tensor& cover, const Tensor& watermarked) {
-  double sum = 0.0;
-  for (size_t i = 0; i < cover.size(); ++i) {
-    const double d =
-        (std::clamp(watermarked.data[i], -1.f, 1.f) - cover.data[i]) * 0.5;
-    sum += d * d;
-  }
-  const double mse = std::max(sum / double(cover.size()), 1e-12);
-  return -10.0 * std::log10(mse);
-}
-
-}  // namespace
 
 StepResult CudaTrainStep(CudaHiddenModel& model, CudaNetworkAdam& adam,
                          ImageNoise& noise, NoiseKind kind,
