@@ -4,16 +4,18 @@
 // radii over several iterations both clone, split and prune the same
 // Gaussians, reset the same opacities, keep byte-identical statistics and
 // RNG state (SaveState), and leave the same moments. The GPU tests run when
-// a GPU is visible; the constructor's error runs without one.
+// a GPU is visible; without one, the fixture check (the CPU strategy does
+// clone, split and prune on it) and the constructor's error still run.
 //
 // Tolerance: gathers, opacity resets and moment copies are exact copies of
 // the same float operations, so they must match bit for bit. Split-sample
 // means add an offset computed in double (exp and the rotation) and rounded
 // to float; the device evaluates the same operations unfused, so the offset
 // may differ from the host's by one double rounding, which after the float
-// rounding of mean + offset is at most 1 float ulp of the result: allowed
-// 2 ulps of max(|mean|, 1e-3). A wrong sample, scale or rotation moves a
-// mean by ~the Gaussian's scale (>= 1e-3 here), far more.
+// rounding of mean + offset differs by at most eps |offset| <= 2 eps M plus
+// eps M (M: the largest of |parent mean| and |result|): allowed 4 eps M. A
+// wrong sample, scale or rotation moves a mean by ~the Gaussian's scale (~1e-3
+// or more here), far more.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -22,6 +24,7 @@
 #include <cstdint>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gaussian/adam.h"
@@ -41,8 +44,6 @@
 namespace watergs {
 namespace {
 
-#ifdef WATERGS_WITH_CUDA
-
 constexpr ParamGroup kAllGroups[] = {
     ParamGroup::kXyz,     ParamGroup::kFDc,     ParamGroup::kFRest,
     ParamGroup::kOpacity, ParamGroup::kScaling, ParamGroup::kRotation};
@@ -56,6 +57,16 @@ DensityOptions ShortSchedule() {
   options.densification_interval = 3;
   options.opacity_reset_interval = 7;
   options.seed = 17;
+  return options;
+}
+
+// ShortSchedule with a white background (an extra reset at iteration 2),
+// three samples per split and no screen-size pruning (no radii).
+DensityOptions WhiteBackgroundOptions() {
+  DensityOptions options = ShortSchedule();
+  options.white_background = true;
+  options.split_samples = 3;
+  options.max_screen_size = 0;
   return options;
 }
 
@@ -75,6 +86,77 @@ GaussianModel RandomModel(size_t n, int sh_degree, uint32_t seed) {
   for (float& v : model.sh_rest) v = normal(rng);
   return model;
 }
+
+// One view's statistics for n Gaussians: ~80% visible, NDC norms with mean
+// 2e-4 (about a third above the threshold on average), radii 0-30 px.
+struct HostView {
+  GaussianGradients grads;
+  std::vector<float> radii;
+
+  HostView(size_t n, uint32_t seed) {
+    grads.Reset(n, 0);
+    radii.resize(n);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> uniform(0.f, 1.f);
+    std::exponential_distribution<float> exponential(1.f / 2e-4f);
+    for (size_t i = 0; i < n; ++i) {
+      grads.visible[i] = uniform(rng) < 0.8f;
+      grads.mean2d_grad_norm_ndc[i] = exponential(rng);
+      radii[i] = grads.visible[i] ? 30.f * uniform(rng) : 0.f;
+    }
+  }
+};
+
+// Totals of a CPU run over iterations 1..last with RunParity's views.
+struct CpuTotals {
+  size_t cloned = 0, split = 0, pruned = 0, resets = 0;
+};
+
+CpuTotals RunCpu(GaussianModel model, const DensityOptions& options,
+                 int64_t last, uint32_t seed) {
+  Adam adam(AdamOptions{}, 1.0);
+  adam.Init(model);
+  auto cpu = MakeInriaDensityStrategy(options, 1.0);
+  cpu->Init(model);
+  CpuTotals totals;
+  for (int64_t it = 1; it <= last; ++it) {
+    HostView view(model.size(), seed * 1000 + uint32_t(it));
+    const size_t before = model.size();
+    const DensityEvent event = cpu->PostBackward(
+        it, view.grads, cpu->WantsRadii(it) ? &view.radii : nullptr, &model,
+        &adam);
+    totals.cloned += event.cloned, totals.split += event.split;
+    totals.pruned += event.pruned, totals.resets += event.opacity_reset;
+    EXPECT_EQ(model.size(), adam.size());
+    if (event.densified) {  // each split Gaussian becomes split_samples
+      EXPECT_EQ(model.size(), before + event.cloned +
+                                  event.split * (options.split_samples - 1) -
+                                  event.pruned);
+    }
+  }
+  return totals;
+}
+
+// The parity runs below are only meaningful if the CPU strategy clones,
+// splits, prunes and resets on their fixtures: checked here, with or
+// without a GPU (same models, options and views as the GPU tests).
+TEST(CudaDensityTest, FixturesExerciseCloneSplitPruneAndResetOnTheCpu) {
+  for (int sh_degree : {0, 3}) {
+    const CpuTotals totals = RunCpu(RandomModel(3000, sh_degree, 5 + sh_degree),
+                                    ShortSchedule(), 10, 7 + sh_degree);
+    EXPECT_GT(totals.cloned, 0u);
+    EXPECT_GT(totals.split, 0u);
+    EXPECT_GT(totals.pruned, 0u);
+    EXPECT_EQ(totals.resets, 1u);
+  }
+  const CpuTotals white =
+      RunCpu(RandomModel(2000, 1, 11), WhiteBackgroundOptions(), 10, 13);
+  EXPECT_GT(white.cloned, 0u);
+  EXPECT_GT(white.split, 0u);
+  EXPECT_EQ(white.resets, 2u);  // at densify_from_iter and at 7
+}
+
+#ifdef WATERGS_WITH_CUDA
 
 // Random moments in a CPU Adam sized to `model`.
 void RandomMoments(const GaussianModel& model, uint32_t seed, Adam* adam) {
@@ -120,8 +202,7 @@ struct DeviceModel {
   }
 };
 
-// One view's statistics for n Gaussians: ~80% visible, NDC norms with mean
-// 2e-4 (about a third above the threshold on average), radii 0-30 px.
+// A HostView and its device copy.
 struct ViewStats {
   GaussianGradients grads;
   std::vector<float> radii;
@@ -129,16 +210,9 @@ struct ViewStats {
   DeviceBuffer<float> norm_ndc, device_radii;
 
   ViewStats(size_t n, uint32_t seed) {
-    grads.Reset(n, 0);
-    radii.resize(n);
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> uniform(0.f, 1.f);
-    std::exponential_distribution<float> exponential(1.f / 2e-4f);
-    for (size_t i = 0; i < n; ++i) {
-      grads.visible[i] = uniform(rng) < 0.8f;
-      grads.mean2d_grad_norm_ndc[i] = exponential(rng);
-      radii[i] = grads.visible[i] ? 30.f * uniform(rng) : 0.f;
-    }
+    HostView host(n, seed);
+    grads = std::move(host.grads);
+    radii = std::move(host.radii);
     visible.Upload(grads.visible);
     norm_ndc.Upload(grads.mean2d_grad_norm_ndc);
     device_radii.Upload(radii);
@@ -151,10 +225,11 @@ struct ViewStats {
   }
 };
 
-// Every value equal, but the means of rows with sampled[row] (split samples)
-// within 2 ulps of max(|x|, 1e-3) (see the file comment).
+// Every value equal, but the means of split samples (rows with
+// sample_scale[row] > 0) within 4 eps of sample_scale[row], the largest
+// magnitude among the row's parent mean and result (see the file comment).
 void ExpectModelsMatch(const GaussianModel& cpu, const GaussianModel& gpu,
-                       const std::vector<bool>& sampled,
+                       const std::vector<float>& sample_scale,
                        const std::string& where) {
   ASSERT_EQ(cpu.size(), gpu.size()) << where;
   for (ParamGroup g : kAllGroups) {
@@ -162,8 +237,8 @@ void ExpectModelsMatch(const GaussianModel& cpu, const GaussianModel& gpu,
     const std::vector<float>& b = GroupParams(gpu, g);
     ASSERT_EQ(a.size(), b.size()) << where << " " << GroupName(g);
     for (size_t k = 0; k < a.size(); ++k) {
-      if (g == ParamGroup::kXyz && sampled[k / 3]) {
-        const float tol = 2 * FLT_EPSILON * std::max(std::abs(a[k]), 1e-3f);
+      if (g == ParamGroup::kXyz && sample_scale[k / 3] > 0) {
+        const float tol = 4 * FLT_EPSILON * sample_scale[k / 3];
         ASSERT_NEAR(a[k], b[k], tol) << where << " mean value " << k;
       } else {
         ASSERT_EQ(a[k], b[k]) << where << " " << GroupName(g) << " " << k;
@@ -172,20 +247,25 @@ void ExpectModelsMatch(const GaussianModel& cpu, const GaussianModel& gpu,
   }
 }
 
-// Rows of `after` (a CPU densification of `before` with `parent`) whose mean
-// the CPU moved: the split samples.
-std::vector<bool> SampledRows(const GaussianModel& before,
-                              const GaussianModel& after,
-                              const std::vector<int64_t>& parent) {
-  std::vector<bool> sampled(after.size(), false);
+// For each row of `after` (a CPU densification of `before` with `parent`)
+// whose mean the CPU moved (a split sample): the largest magnitude of its
+// parent's and its own mean values; 0 for the other rows.
+std::vector<float> SampleScales(const GaussianModel& before,
+                                const GaussianModel& after,
+                                const std::vector<int64_t>& parent) {
+  std::vector<float> scale(after.size(), 0.f);
   for (size_t j = 0; j < after.size(); ++j) {
+    bool moved = false;
+    float largest = 0.f;
     for (int a = 0; a < 3; ++a) {
-      if (after.means[3 * j + a] != before.means[3 * parent[j] + a]) {
-        sampled[j] = true;
-      }
+      const float from = before.means[3 * parent[j] + a];
+      const float to = after.means[3 * j + a];
+      moved = moved || from != to;
+      largest = std::max({largest, std::abs(from), std::abs(to)});
     }
+    if (moved) scale[j] = largest;
   }
-  return sampled;
+  return scale;
 }
 
 void ExpectMomentsMatch(Adam& cpu, const CudaAdam& gpu,
@@ -236,17 +316,17 @@ void RunParity(const GaussianModel& start, const DensityOptions& options,
     ASSERT_EQ(a.cloned, b.cloned) << where;
     ASSERT_EQ(a.split, b.split) << where;
     ASSERT_EQ(a.pruned, b.pruned) << where;
-    std::vector<bool> sampled(cpu_model.size(), false);
+    std::vector<float> sample_scale(cpu_model.size(), 0.f);
     if (a.densified) {
       std::vector<int64_t> parent;
       gpu.DownloadParent(&parent);
       EXPECT_EQ(a.parent, parent) << where;
-      sampled = SampledRows(before, cpu_model, a.parent);
+      sample_scale = SampleScales(before, cpu_model, a.parent);
       densified = true;
       split |= a.split > 0;
       pruned |= a.pruned > 0;
     }
-    ExpectModelsMatch(cpu_model, gpu_model.Download(), sampled, where);
+    ExpectModelsMatch(cpu_model, gpu_model.Download(), sample_scale, where);
     ExpectMomentsMatch(cpu_adam, gpu_adam, where);
     ASSERT_EQ(cpu->SaveState(), gpu.SaveState()) << where;
   }
@@ -267,11 +347,7 @@ TEST(CudaDensityTest, MatchesCpuStrategyOverIterations) {
 
 TEST(CudaDensityTest, WhiteBackgroundResetAndSplitSamplesMatch) {
   WATERGS_REQUIRE_CUDA();
-  DensityOptions options = ShortSchedule();
-  options.white_background = true;
-  options.split_samples = 3;
-  options.max_screen_size = 0;  // no screen-size pruning, no radii
-  RunParity(RandomModel(2000, 1, 11), options, 10, 13, true);
+  RunParity(RandomModel(2000, 1, 11), WhiteBackgroundOptions(), 10, 13, false);
 }
 
 TEST(CudaDensityTest, OpacityResetIsIdentical) {
@@ -319,7 +395,7 @@ TEST(CudaDensityTest, AllPrunedLeavesAnEmptyModelAsTheCpuDoes) {
   auto cpu = MakeInriaDensityStrategy(options, 1.0);
   cpu->Init(cpu_model);
   for (int64_t it = 1; it <= 3; ++it) {
-    ViewStats view(cpu_model.size(), uint32_t(it));
+    HostView view(cpu_model.size(), uint32_t(it));
     cpu->PostBackward(it, view.grads, nullptr, &cpu_model, &adam);
   }
   EXPECT_EQ(cpu_model.size(), 0u);
