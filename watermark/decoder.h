@@ -13,11 +13,13 @@
 #include <vector>
 
 #include "gaussian/image.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {
 
-class Decoder {
+// The CPU implementation of BitDecoder.
+class Decoder : public BitDecoder {
  public:
   // Loads the decoder of a weights file (see hidden_model.h); throws Error
   // naming the file when it is missing, truncated, corrupted, not a HiDDeN
@@ -27,16 +29,16 @@ class Decoder {
   explicit Decoder(HiddenModel* model);
   Decoder(Decoder&&) noexcept;
   Decoder& operator=(Decoder&&) noexcept;
-  ~Decoder();
+  ~Decoder() override;
 
   // Message length L.
-  int NumBits() const;
+  int NumBits() const override;
   // image (any size >= 1x1) -> L logits.
-  std::vector<float> Logits(const ImageRGB& image);
+  std::vector<float> Logits(const ImageRGB& image) override;
   // image, dLoss/dLogits (L values) -> dLoss/dImage (same size as image).
   // Re-runs the forward pass only when `image` differs from the last one.
   void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
-                     ImageRGB* dimage);
+                     ImageRGB* dimage) override;
   ImageRGB InputGradient(const ImageRGB& image,
                          const std::vector<float>& dlogits);
 

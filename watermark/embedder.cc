@@ -46,7 +46,7 @@ void AddPatch(const ImageRGB& patch, const PixelRect& rect, float scale,
 
 }  // namespace
 
-double AddMessageLoss(Decoder& decoder, const ImageRGB& image,
+double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                       const PixelRect& crop, const std::vector<float>& targets,
                       double gamma, ImageRGB* grad_image, int* bit_errors) {
   ImageRGB cropped, grad;
@@ -78,8 +78,9 @@ double AddMessageLoss(Decoder& decoder, const ImageRGB& image,
 double MessageLossGradient(Rasterizer& rasterizer, const GaussianModel& model,
                            const RenderCamera& camera,
                            const RenderOptions& options, const PixelRect& crop,
-                           Decoder& decoder, const std::vector<float>& targets,
-                           double gamma, GaussianGradients* grads) {
+                           BitDecoder& decoder,
+                           const std::vector<float>& targets, double gamma,
+                           GaussianGradients* grads) {
   ImageRGB image;
   std::unique_ptr<RenderContext> context;
   rasterizer.Forward(model, camera, options, &image, &context);
@@ -150,7 +151,7 @@ void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out) {
 
 Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
                    std::vector<size_t> train_views, GaussianModel model,
-                   double scene_extent, Decoder* decoder, Bits message,
+                   double scene_extent, BitDecoder* decoder, Bits message,
                    std::unique_ptr<Rasterizer> rasterizer)
     : options_(options),
       views_(views),

@@ -21,6 +21,7 @@
 #include "gaussian/loss.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/trainer.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/decoder.h"
 #include "watermark/message.h"
 
@@ -122,7 +123,7 @@ class Embedder {
   // message.size() bits.
   Embedder(const EmbedOptions& options, const TrainingViews& views,
            std::vector<size_t> train_views, GaussianModel model,
-           double scene_extent, Decoder* decoder, Bits message,
+           double scene_extent, BitDecoder* decoder, Bits message,
            std::unique_ptr<Rasterizer> rasterizer);
 
   // One fine-tuning iteration. Throws Error on a non-finite loss.
@@ -155,7 +156,7 @@ class Embedder {
   std::vector<size_t> train_views_;
   GaussianModel model_;
   double scene_extent_;
-  Decoder* decoder_;
+  BitDecoder* decoder_;
   Bits message_;
   std::vector<float> targets_;
   std::unique_ptr<Rasterizer> rasterizer_;
@@ -183,7 +184,7 @@ void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out);
 // in image pixels, empty = all of it) and adds gamma * d BCE / d image into
 // grad_image (image's shape); bit_errors (if not null) gets the errors of
 // the decoded bits.
-double AddMessageLoss(Decoder& decoder, const ImageRGB& image,
+double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                       const PixelRect& crop, const std::vector<float>& targets,
                       double gamma, ImageRGB* grad_image, int* bit_errors);
 
@@ -192,7 +193,8 @@ double AddMessageLoss(Decoder& decoder, const ImageRGB& image,
 double MessageLossGradient(Rasterizer& rasterizer, const GaussianModel& model,
                            const RenderCamera& camera,
                            const RenderOptions& options, const PixelRect& crop,
-                           Decoder& decoder, const std::vector<float>& targets,
-                           double gamma, GaussianGradients* grads);
+                           BitDecoder& decoder,
+                           const std::vector<float>& targets, double gamma,
+                           GaussianGradients* grads);
 
 }  // namespace watergs

@@ -91,7 +91,7 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
                                    const GaussianModel& watermarked,
                                    const TrainingViews& views,
                                    const std::vector<size_t>& eval_views,
-                                   Decoder& decoder, const Bits& message,
+                                   BitDecoder& decoder, const Bits& message,
                                    const EvaluationOptions& options) {
   if (eval_views.empty()) Fail("eval: no views to evaluate");
   const auto begin = std::chrono::steady_clock::now();

@@ -15,6 +15,7 @@
 #include "distortion/file_attacks.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/trainer.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/decoder.h"
 #include "watermark/extractor.h"
 #include "watermark/image_attacks.h"
@@ -114,7 +115,7 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
                                    const GaussianModel& watermarked,
                                    const TrainingViews& views,
                                    const std::vector<size_t>& eval_views,
-                                   Decoder& decoder, const Bits& message,
+                                   BitDecoder& decoder, const Bits& message,
                                    const EvaluationOptions& options);
 
 // The report as JSON (per-view metrics and per-attack results included);

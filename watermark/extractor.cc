@@ -34,7 +34,7 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
                                   const GaussianModel& model,
                                   const std::vector<RenderCamera>& cameras,
                                   const std::vector<std::string>& names,
-                                  Decoder& decoder, const Bits* expected,
+                                  BitDecoder& decoder, const Bits* expected,
                                   const std::array<float, 3>& background,
                                   const VerificationThresholds& thresholds,
                                   const RenderAttack& attack) {

@@ -15,6 +15,7 @@
 #include "gaussian/gaussian_model.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/trainer.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/decoder.h"
 #include "watermark/message.h"
 #include "watermark/verification.h"
@@ -66,7 +67,7 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
                                   const GaussianModel& model,
                                   const std::vector<RenderCamera>& cameras,
                                   const std::vector<std::string>& names,
-                                  Decoder& decoder, const Bits* expected,
+                                  BitDecoder& decoder, const Bits* expected,
                                   const std::array<float, 3>& background,
                                   const VerificationThresholds& thresholds,
                                   const RenderAttack& attack = {});

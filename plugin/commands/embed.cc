@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/embedder.h"
 
 namespace watergs {
@@ -175,8 +177,9 @@ int RunEmbed(int argc, char** argv) {
   options.show_progress = true;
 
   PlyData ply = ReadPly(a.input_path);
-  Decoder decoder = Decoder::Load(a.decoder_path);
-  Bits message = ParseMessage(a.message, decoder.NumBits());
+  const std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(a.decoder_path, parser.device());
+  Bits message = ParseMessage(a.message, decoder->NumBits());
   const Workspace workspace = Workspace::Open(a.workspace);
   const WorkspaceViews views(workspace);
   const std::vector<size_t> train_views = workspace.TrainViews(a.eval);
@@ -187,12 +190,12 @@ int RunEmbed(int argc, char** argv) {
       "embed: %zu Gaussians, %zu views %dx%d, %d-bit message %s, "
       "distortions %s, crop %d, density control %s, %d threads\n",
       ply.model.size(), train_views.size(), first.width, first.height,
-      decoder.NumBits(), BitsToHex(message).c_str(), a.distortions.c_str(),
+      decoder->NumBits(), BitsToHex(message).c_str(), a.distortions.c_str(),
       a.crop_size, a.densify.c_str(), omp_get_max_threads());
 
   const GaussianModel raw = ply.model;
   Embedder embedder(options, views, train_views, std::move(ply.model), extent,
-                    &decoder, message, MakeRasterizer(parser.device()));
+                    decoder.get(), message, MakeRasterizer(parser.device()));
   if (a.resume) {
     embedder.Resume(checkpoint_path);
     std::printf("embed: resumed at iteration %lld\n",

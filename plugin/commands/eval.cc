@@ -18,6 +18,7 @@
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/evaluation.h"
 
 namespace watergs {
@@ -126,8 +127,9 @@ int RunEval(int argc, char** argv) {
   options.show_progress = true;
   const PlyData raw = ReadPly(raw_path);
   const PlyData watermarked = ReadPly(input_path);
-  Decoder decoder = Decoder::Load(decoder_path);
-  const Bits bits = ParseMessage(message, decoder.NumBits());
+  const std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(decoder_path, parser.device());
+  const Bits bits = ParseMessage(message, decoder->NumBits());
   std::unique_ptr<Lpips> lpips =
       LoadLpipsIfPresent(lpips_path, &options.lpips_note);
   options.lpips = lpips.get();
@@ -138,7 +140,7 @@ int RunEval(int argc, char** argv) {
 
   const EvaluationReport report = EvaluateWatermark(
       *MakeRasterizer(parser.device()), raw.model, watermarked.model, views,
-      eval_views, decoder, bits, options);
+      eval_views, *decoder, bits, options);
   std::string markdown =
       "# watergs eval\n\nRaw " + raw_path + " (" +
       std::to_string(report.raw_gaussians) + " Gaussians), watermarked " +

@@ -8,6 +8,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,7 @@
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/extractor.h"
 #include "watermark/image_attacks.h"
 
@@ -94,9 +96,10 @@ int RunExtract(int argc, char** argv) {
   if (num_threads > 0) omp_set_num_threads(num_threads);
 
   const PlyData ply = ReadPly(input_path);
-  Decoder decoder = Decoder::Load(decoder_path);
+  const std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(decoder_path, parser.device());
   Bits expected;
-  if (!message.empty()) expected = ParseMessage(message, decoder.NumBits());
+  if (!message.empty()) expected = ParseMessage(message, decoder->NumBits());
   const Workspace workspace = Workspace::Open(workspace_options);
   const WorkspaceViews views(workspace);
 
@@ -129,7 +132,7 @@ int RunExtract(int argc, char** argv) {
   thresholds.present_p = present_p;
   const ExtractionResult r =
       ExtractWatermark(*MakeRasterizer(parser.device()), ply.model, cameras,
-                       names, decoder, expected.empty() ? nullptr : &expected,
+                       names, *decoder, expected.empty() ? nullptr : &expected,
                        ParseBackground(background), thresholds, attack);
 
   std::printf("extract: %zu views of %s (%zu Gaussians)\n", r.views.size(),

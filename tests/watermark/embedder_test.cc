@@ -4,10 +4,14 @@
 #include "watermark/embedder.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <random>
+#include <string>
 
 #include "gaussian/device.h"
 #include "gaussian/error.h"
@@ -347,6 +351,47 @@ TEST(EmbedderCuda, StepsMatchTheCpuEmbedder) {
   for (int i = 0; i < 3; ++i) {
     const EmbedStepStats a = cpu.Step(), b = gpu.Step();
     EXPECT_NEAR(a.bce, b.bce, 1e-4 * (1 + a.bce));
+    EXPECT_NEAR(a.image.total, b.image.total, 1e-5 * (1 + a.image.total));
+  }
+  testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.0, 3);
+}
+
+// What `embed --device cuda` runs: the decoder (loaded by LoadBitDecoder from
+// the CPU decoder's weights file) on the GPU too. Its logits agree with the
+// CPU's to 1e-3 of their scale (tests/watermark/cuda_decoder_test.cc) and
+// the mean BCE moves by at most the largest logit change, so the BCE agrees
+// to 1e-3 of the largest |logit|; the image loss and Adam's steps as above.
+TEST(EmbedderCuda, StepsWithTheCudaDecoderMatchTheCpuEmbedder) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  const std::string path =
+      (std::filesystem::temp_directory_path() /
+       ("watergs_embedder_decoder_" + std::to_string(::getpid()) + ".bin"))
+          .string();
+  SaveHiddenModel(path, net, false);
+  const std::unique_ptr<BitDecoder> gpu_decoder =
+      LoadBitDecoder(path, Device::kCuda, 16);
+  std::filesystem::remove(path);
+  Decoder cpu_decoder(&net);
+  double logit_scale = 0;
+  for (float logit : cpu_decoder.Logits(*s.views.Image(0))) {
+    logit_scale = std::max(logit_scale, double(std::abs(logit)));
+  }
+  EmbedOptions o = DefaultEmbedOptions(3);
+  o.crop_size = 16;
+  o.densify = false;
+  o.distortions = ParseDistortionList("gn:0.01");
+  o.seed = 4;
+  const Bits message = RandomBits(16, 9);
+  Embedder cpu(o, s.views, s.train, s.model, 3.0, &cpu_decoder, message,
+               MakeCpuRasterizer());
+  Embedder gpu(o, s.views, s.train, s.model, 3.0, gpu_decoder.get(), message,
+               MakeRasterizer(Device::kCuda));
+  for (int i = 0; i < 3; ++i) {
+    const EmbedStepStats a = cpu.Step(), b = gpu.Step();
+    EXPECT_NEAR(a.bce, b.bce, 1e-3 * (1 + logit_scale));
     EXPECT_NEAR(a.image.total, b.image.total, 1e-5 * (1 + a.image.total));
   }
   testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.0, 3);

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "gaussian/image.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/cuda/cuda_nn.h"
 #include "watermark/hidden_model.h"
 
@@ -108,8 +109,9 @@ struct CudaHiddenModel {
   std::unique_ptr<CudaHiddenDecoder> decoder;
 };
 
-// The frozen universal decoder (Decoder's twin) on the GPU.
-class CudaDecoder {
+// The frozen universal decoder (Decoder's twin) on the GPU: the CUDA
+// implementation of BitDecoder.
+class CudaDecoder : public BitDecoder {
  public:
   // Loads the decoder of a weights file as Decoder::Load does (same
   // checks, same errors). allow_tf32: see CudaNnContext (faster, ~1e-3
@@ -120,16 +122,16 @@ class CudaDecoder {
   explicit CudaDecoder(HiddenModel& model, bool allow_tf32 = false);
   CudaDecoder(CudaDecoder&&) noexcept;
   CudaDecoder& operator=(CudaDecoder&&) noexcept;
-  ~CudaDecoder();
+  ~CudaDecoder() override;
 
   // Message length L.
-  int NumBits() const;
+  int NumBits() const override;
   // image (any size >= 1x1) -> L logits.
-  std::vector<float> Logits(const ImageRGB& image);
+  std::vector<float> Logits(const ImageRGB& image) override;
   // image, dLoss/dLogits (L values) -> dLoss/dImage (same size as image).
   // Re-runs the forward pass only when `image` differs from the last one.
   void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
-                     ImageRGB* dimage);
+                     ImageRGB* dimage) override;
   ImageRGB InputGradient(const ImageRGB& image,
                          const std::vector<float>& dlogits);
 
