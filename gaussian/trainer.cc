@@ -113,6 +113,7 @@ Trainer::Trainer(const TrainerOptions& options, const TrainingViews& views,
     DensityOptions density = options_.density;
     density.seed = options_.seed ^ 0x9e3779b97f4a7c15ull;
     strategy_ = MakeInriaDensityStrategy(density, scene_extent_);
+    builtin_density_ = std::make_unique<DensityOptions>(density);
   }
   adam_.Init(model_);
   strategy_->Init(model_);
@@ -138,7 +139,15 @@ Trainer::~Trainer() = default;
 
 void Trainer::UseDeviceStep(const DeviceTrainingStepFactory& make) {
   SyncToHost();
+  if (device_density_) {
+    // The outgoing step's density state moves to the next owner.
+    strategy_->Init(model_);
+    strategy_->LoadState(device_->SaveDensityState());
+  }
   device_ = make(&model_, &adam_);
+  device_density_ = builtin_density_ && device_->TakeDensityControl(
+                                            *builtin_density_, scene_extent_,
+                                            strategy_->SaveState());
 }
 
 // The host model_ and adam_ are a cache of the device state on the GPU path:
@@ -320,8 +329,11 @@ void Trainer::FailAllPruned(int64_t it) {
        "or too large)");
 }
 
-// Step on the device: the same stages and rules as the host path. Density
-// control runs on the host: on iterations where it only accumulates
+// Step on the device: the same stages and rules as the host path. With the
+// built-in Inria strategy the device step runs density control itself
+// (DensityStep): nothing per Gaussian crosses the bus, and the trainer reads
+// only the event and the Gaussian count. A strategy passed in runs on the
+// host (HostDensityStep): on iterations where it only accumulates
 // statistics it gets this view's visibility and NDC gradient norms (and
 // radii) and a host model of the right size; where it may change the model
 // (MayChangeModel: for Inria's ADC the densification iterations, every 100,
@@ -350,9 +362,12 @@ IterationStats Trainer::StepOnDevice(int64_t it, size_t view,
     FailNonFiniteLoss(it, stats.loss.total, view);
   }
   const bool last = it >= options_.iterations;
-  const bool wants_radii = !last && strategy_->WantsRadii(it);
-  device_->Backward(!last && strategy_->ReadsGradients(it) ? &grads_ : nullptr,
-                    wants_radii ? &radii_ : nullptr);
+  // Host strategy only: what it reads comes down.
+  const bool host_density = !last && !device_density_;
+  const bool wants_radii = host_density && strategy_->WantsRadii(it);
+  device_->Backward(
+      host_density && strategy_->ReadsGradients(it) ? &grads_ : nullptr,
+      wants_radii ? &radii_ : nullptr);
   device_->Synchronize();
   auto t3 = Clock::now();
   const double c3 = ProcessCpuSeconds();
@@ -360,23 +375,11 @@ IterationStats Trainer::StepOnDevice(int64_t it, size_t view,
   // nor reset.
   DensityEvent event;
   if (!last) {
-    const bool may_change = strategy_->MayChangeModel(it);
-    if (may_change) SyncToHost();
-    const size_t before = model_.size();
-    event = strategy_->PostBackward(it, grads_, wants_radii ? &radii_ : nullptr,
-                                    &model_, &adam_);
-    if (may_change) {
-      device_->MarkHostModelEdited();
-      device_->MarkHostAdamEdited();
-      device_->PushIfStale();
-    } else if (event.densified || event.opacity_reset ||
-               model_.size() != before) {
-      Fail("training stopped at iteration " + std::to_string(it) +
-           ": the density strategy changed the model on an iteration its "
-           "MayChangeModel excludes");
-    }
+    event = device_density_ ? device_->DensityStep(it)
+                            : HostDensityStep(it, wants_radii);
   }
-  if (model_.size() == 0) FailAllPruned(it);
+  const size_t num_gaussians = device_->NumGaussians();
+  if (num_gaussians == 0) FailAllPruned(it);
   auto t4 = Clock::now();
   const double c4 = ProcessCpuSeconds();
   // Host path's rules: no step after densification or on the last
@@ -387,10 +390,29 @@ IterationStats Trainer::StepOnDevice(int64_t it, size_t view,
   auto t5 = Clock::now();
   const double c5 = ProcessCpuSeconds();
   FillStepStats({t0, t1, t2, t3, t4, t5}, {c0, c1, c2, c3, c4, c5}, event,
-                model_.size(), &stats);
+                num_gaussians, &stats);
   iteration_ = it;
   elapsed_seconds_ += Seconds(t0, t5);
   return stats;
+}
+
+DensityEvent Trainer::HostDensityStep(int64_t it, bool wants_radii) {
+  const bool may_change = strategy_->MayChangeModel(it);
+  if (may_change) SyncToHost();
+  const size_t before = model_.size();
+  const DensityEvent event = strategy_->PostBackward(
+      it, grads_, wants_radii ? &radii_ : nullptr, &model_, &adam_);
+  if (may_change) {
+    device_->MarkHostModelEdited();
+    device_->MarkHostAdamEdited();
+    device_->PushIfStale();
+  } else if (event.densified || event.opacity_reset ||
+             model_.size() != before) {
+    Fail("training stopped at iteration " + std::to_string(it) +
+         ": the density strategy changed the model on an iteration its "
+         "MayChangeModel excludes");
+  }
+  return event;
 }
 
 void Trainer::AppendLog(const IterationStats& stats, const EvalResult* test) {
@@ -469,7 +491,10 @@ void Trainer::Run() {
   }
   FlushLog();
   if (bar) {
-    bar->Finish(std::to_string(model_.size()) + " Gaussians");
+    // The device's count: the host model may be behind.
+    bar->Finish(
+        std::to_string(device_ ? device_->NumGaussians() : model_.size()) +
+        " Gaussians");
   }
 }
 
@@ -485,7 +510,10 @@ TrainingCheckpoint Trainer::MakeCheckpoint() const {
     c.adam[g] = adam_.state(static_cast<ParamGroup>(g));
   }
   c.adam_rejected = adam_.rejected_total();
-  c.density_state = strategy_->SaveState();
+  // On the device the CPU strategy's bytes too: checkpoints resume on
+  // either device.
+  c.density_state =
+      device_density_ ? device_->SaveDensityState() : strategy_->SaveState();
   c.rng_state = RngState(rng_);
   c.view_stack = view_stack_;
   c.run_signature = RunSignature();
@@ -552,6 +580,7 @@ void Trainer::Resume(const std::string& checkpoint_path) {
   if (device_) {
     device_->MarkHostModelEdited();
     device_->MarkHostAdamEdited();
+    if (device_density_) device_->LoadDensityState(c.density_state);
   }
   // Keep the log lines the checkpoint covers.
   log_lines_.clear();

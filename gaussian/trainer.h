@@ -115,7 +115,8 @@ class Trainer {
   // `train_views` index into `views` (which must outlive the trainer);
   // `scene_extent` is Inria's cameras_extent. A null strategy means Inria's
   // ADC with options.density. With a CudaRasterizer and float32 moments the
-  // model, moments and gradients live on the GPU (cuda_training_step.h).
+  // model, moments and gradients live on the GPU (cuda_training_step.h), and
+  // so does that built-in ADC (a strategy passed in runs on the host).
   Trainer(const TrainerOptions& options, const TrainingViews& views,
           std::vector<size_t> train_views, GaussianModel initial,
           double scene_extent, std::unique_ptr<Rasterizer> rasterizer,
@@ -146,6 +147,8 @@ class Trainer {
   void SyncToHost() const;
   // Trains through the device step `make` builds from now on (the trainer
   // does this itself for a CudaRasterizer; tests pass a host emulation).
+  // With the built-in Inria strategy the step takes density control over
+  // when it can; a strategy passed in stays on the host.
   void UseDeviceStep(const DeviceTrainingStepFactory& make);
   Rasterizer& rasterizer() { return *rasterizer_; }
   int64_t iteration() const { return iteration_; }
@@ -169,6 +172,10 @@ class Trainer {
                               const RenderCamera& camera,
                               const RenderOptions& render_options,
                               const ImageRGB& truth);
+  // StepOnDevice's density stage through the host strategy: statistics
+  // from grads_ and radii_, model and moments synced both ways on the
+  // iterations it may change them.
+  DensityEvent HostDensityStep(int64_t it, bool wants_radii);
 
   TrainerOptions options_;
   const TrainingViews& views_;
@@ -177,6 +184,12 @@ class Trainer {
   double scene_extent_;
   std::unique_ptr<Rasterizer> rasterizer_;
   std::unique_ptr<DensityStrategy> strategy_;
+  // The seeded options of strategy_ when the trainer built it (Inria's
+  // ADC): only then may a device step take density control over.
+  std::unique_ptr<DensityOptions> builtin_density_;
+  // The device step runs density control (strategy_ is then idle and its
+  // state stale; the device's is the run's).
+  bool device_density_ = false;
   Adam adam_;
   // The device step mirroring model_ and adam_ (null on the host path).
   std::unique_ptr<DeviceTrainingStep> device_;

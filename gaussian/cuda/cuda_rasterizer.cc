@@ -422,6 +422,11 @@ void CudaRasterizer::DownloadScreenRadii(const RenderContext& context,
   radii->resize(static_cast<size_t>(ctx.model.count));
 }
 
+const float* CudaRasterizer::DeviceScreenRadii(
+    const RenderContext& context) const {
+  return AsCudaContext(context).workspace->radii.data();
+}
+
 std::unique_ptr<Rasterizer> MakeCudaRasterizer() {
   return std::make_unique<CudaRasterizer>();
 }

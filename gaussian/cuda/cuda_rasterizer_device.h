@@ -76,6 +76,9 @@ class CudaRasterizer : public Rasterizer {
   // density control needs no second pass over the model.
   void DownloadScreenRadii(const RenderContext& context,
                            std::vector<float>* radii) const;
+  // The same N radii on the device, in the context's workspace: valid while
+  // `context` is alive.
+  const float* DeviceScreenRadii(const RenderContext& context) const;
 
  private:
   // A pooled workspace no live context holds, or a new one.

@@ -195,7 +195,9 @@ void CudaTrainingStep::Backward(GaussianGradients* statistics,
   if (!context_) Fail("CudaTrainingStep: Backward without a Forward");
   rasterizer_->BackwardDevice(*context_, grad_image_.data(), GradientArrays());
   if (radii) rasterizer_->DownloadScreenRadii(*context_, radii);
-  context_.reset();
+  // DensityStep reads the radii from the context's workspace (which stays
+  // allocated in the rasterizer's pool either way).
+  if (!density_) context_.reset();
   if (statistics) {
     visible_.Download(&statistics->visible);
     grad_norm_ndc_.Download(&statistics->mean2d_grad_norm_ndc);
@@ -228,6 +230,55 @@ size_t CudaTrainingStep::AdamStep(int64_t iteration, bool skip_opacity) {
   adam_.SetGroupEnabled(ParamGroup::kOpacity, opacity_enabled);
   host_model_stale_ = host_adam_stale_ = true;
   return rejected;
+}
+
+size_t CudaTrainingStep::NumGaussians() const {
+  return device_model_stale_ ? host_model_->size() : count_;
+}
+
+bool CudaTrainingStep::TakeDensityControl(const DensityOptions& options,
+                                          double scene_extent,
+                                          const std::string& state) {
+  density_ = std::make_unique<CudaDensityControl>(options, scene_extent);
+  LoadDensityState(state);
+  return true;
+}
+
+DensityEvent CudaTrainingStep::DensityStep(int64_t iteration) {
+  if (!density_) Fail("CudaTrainingStep: DensityStep without density control");
+  const float* radii = nullptr;
+  if (density_->WantsRadii(iteration)) {
+    if (!context_) Fail("CudaTrainingStep: DensityStep without a Backward");
+    radii = rasterizer_->DeviceScreenRadii(*context_);
+  }
+  CudaDensityModel model;
+  model.means = &means_;
+  model.log_scales = &log_scales_;
+  model.quats = &quats_;
+  model.opacity_logits = &opacity_logits_;
+  model.sh_dc = &sh_dc_;
+  model.sh_rest = &sh_rest_;
+  model.sh_degree = sh_degree_;
+  const DensityEvent event =
+      density_->PostBackward(iteration, GradientArrays(), radii, model, &adam_);
+  context_.reset();
+  if (event.densified || event.opacity_reset) {
+    // GradientArrays resizes the gradients at the next Backward.
+    count_ = means_.size() / 3;
+    host_model_stale_ = host_adam_stale_ = true;
+  }
+  return event;
+}
+
+std::string CudaTrainingStep::SaveDensityState() const {
+  if (!density_) Fail("CudaTrainingStep: no density control to save");
+  return density_->SaveState();
+}
+
+void CudaTrainingStep::LoadDensityState(const std::string& state) {
+  if (!density_) Fail("CudaTrainingStep: no density control to load");
+  density_->Init(NumGaussians());
+  density_->LoadState(state);
 }
 
 void CudaTrainingStep::Synchronize() {

@@ -6,18 +6,22 @@
 // down (5-9 bytes per Gaussian instead of ~0.5 KB each way). The trainer's
 // host model and Adam are a mirror: pulled from the device before anything
 // reads them (Pull*), pushed back after the host edits them (MarkHost*);
-// device_training_step.h has the contract. Host C++ (C++20); only the .cu
-// files it calls must stay C++17.
+// device_training_step.h has the contract. With density control taken over
+// (CudaDensityControl, cuda_density.h) nothing per Gaussian comes down at
+// all, not even at densifications and resets. Host C++ (C++20); only the
+// .cu files it calls must stay C++17.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "gaussian/adam.h"
 #include "gaussian/camera.h"
 #include "gaussian/cuda/cuda_adam.h"
+#include "gaussian/cuda/cuda_density.h"
 #include "gaussian/cuda/cuda_loss.h"
 #include "gaussian/cuda/cuda_rasterizer_device.h"
 #include "gaussian/cuda/device_buffer.h"
@@ -42,7 +46,8 @@ class CudaTrainingStep : public DeviceTrainingStep {
   // DeviceTrainingStep. The truth image is uploaded; the radii come from
   // the CUDA projection. The Adam state mirrored is the moments, step
   // counts, enabled groups and rejected count; masks set on the host Adam
-  // are not (the trainer sets none).
+  // are not (the trainer sets none). With density control taken, Backward
+  // keeps the view's context (its screen radii) until DensityStep.
   void Forward(const RenderCamera& camera, const RenderOptions& options,
                const ImageRGB& truth) override;
   LossTerms Loss() override;
@@ -55,6 +60,12 @@ class CudaTrainingStep : public DeviceTrainingStep {
   void MarkHostModelEdited() override;
   void MarkHostAdamEdited() override;
   void PushIfStale() override;
+  size_t NumGaussians() const override;
+  bool TakeDensityControl(const DensityOptions& options, double scene_extent,
+                          const std::string& state) override;
+  DensityEvent DensityStep(int64_t iteration) override;
+  std::string SaveDensityState() const override;
+  void LoadDensityState(const std::string& state) override;
 
  private:
   // The device model as the rasterizer reads it.
@@ -94,6 +105,8 @@ class CudaTrainingStep : public DeviceTrainingStep {
   int active_sh_degree_ = 0;
   // The current view's forward pass (alive from Forward to Backward).
   std::unique_ptr<RenderContext> context_;
+  // Density control on the device (null until TakeDensityControl).
+  std::unique_ptr<CudaDensityControl> density_;
 };
 
 }  // namespace watergs

@@ -119,9 +119,10 @@ class NanAfter : public Rasterizer {
 
 // A device step emulated on the host: its "device" model and Adam are
 // separate copies that meet the trainer's only through Pull and Push, with
-// the CPU rasterizer, loss and Adam doing what the CUDA kernels do. A run
-// through it equals the host run bit for bit exactly when the trainer syncs
-// at the right points (a stale read or a lost edit changes the result).
+// the CPU rasterizer, loss, Adam and (once it takes density control) an
+// Inria strategy of its own doing what the CUDA kernels do. A run through it
+// equals the host run bit for bit exactly when the trainer syncs at the
+// right points (a stale read or a lost edit changes the result).
 class EmulatedDeviceStep : public DeviceTrainingStep {
  public:
   EmulatedDeviceStep(GaussianModel* host_model, Adam* host_adam)
@@ -181,9 +182,39 @@ class EmulatedDeviceStep : public DeviceTrainingStep {
     if (device_adam_stale_) adam_ = *host_adam_, ++pushes;
     device_model_stale_ = device_adam_stale_ = false;
   }
+  size_t NumGaussians() const override {
+    return device_model_stale_ ? host_model_->size() : model_.size();
+  }
+  bool TakeDensityControl(const DensityOptions& options, double scene_extent,
+                          const std::string& state) override {
+    density_ = MakeInriaDensityStrategy(options, scene_extent);
+    LoadDensityState(state);
+    return true;
+  }
+  DensityEvent DensityStep(int64_t iteration) override {
+    std::vector<float> radii;
+    const bool wants_radii = density_->WantsRadii(iteration);
+    if (wants_radii)
+      ComputeScreenRadii(model_, camera_, grads_.visible, &radii);
+    const DensityEvent event = density_->PostBackward(
+        iteration, grads_, wants_radii ? &radii : nullptr, &model_, &adam_);
+    if (event.densified || event.opacity_reset) {
+      host_model_stale_ = host_adam_stale_ = true;
+      ++density_changes;
+    }
+    return event;
+  }
+  std::string SaveDensityState() const override {
+    return density_->SaveState();
+  }
+  void LoadDensityState(const std::string& state) override {
+    density_->Init(device_model_stale_ ? *host_model_ : model_);
+    density_->LoadState(state);
+  }
 
-  // Transfers and steps so far (all instances).
-  static inline int pulls = 0, pushes = 0, steps = 0;
+  // Transfers, steps and density changes on the device so far (all
+  // instances).
+  static inline int pulls = 0, pushes = 0, steps = 0, density_changes = 0;
 
  private:
   GaussianModel* host_model_;
@@ -198,6 +229,7 @@ class EmulatedDeviceStep : public DeviceTrainingStep {
   ImageRGB truth_, render_, grad_image_;
   std::unique_ptr<RenderContext> context_;
   GaussianGradients grads_;
+  std::unique_ptr<DensityStrategy> density_;
 };
 
 std::unique_ptr<DeviceTrainingStep> MakeEmulatedStep(GaussianModel* model,
@@ -429,12 +461,18 @@ TEST(Trainer, StateBytesPerGaussianCountsEveryBuffer) {
   EXPECT_GE(trainer.StateBytesPerGaussian(), 3 * params + (11 + 6) * 4);
 }
 
-// The device path's sync protocol, on the host emulation: a run with
-// densification, opacity resets, held-out evaluation and checkpoints equals
-// the host run bit for bit (model, moments, log), and the model crosses
-// between host and device only at densification/reset iterations,
-// evaluations and checkpoints, not every iteration.
-TEST(TrainerDeviceProtocol, EmulatedDeviceRunEqualsTheHostRun) {
+// Transfers of one emulated device run (counted from its first step).
+struct Transfers {
+  int pulls = 0, pushes = 0, steps = 0, density_changes = 0;
+};
+
+// A run with densification (6, 12, 18, 24, 30), an opacity reset (18),
+// held-out evaluation (18, 25, 40) and checkpoints (15, 30) through the
+// emulated device step, with the trainer's own Inria strategy or, when
+// `pass_strategy`, the same strategy passed in (which stays on the host).
+// Expects it to equal the host run bit for bit (model, moments, log,
+// checkpoints) and returns its transfers.
+Transfers ExpectEmulatedRunEqualsHostRun(bool pass_strategy) {
   Scene s = MakeScene();
   const std::string dir = TempDir("emulated");
   TrainerOptions o = SmallRun(40);
@@ -446,20 +484,23 @@ TEST(TrainerDeviceProtocol, EmulatedDeviceRunEqualsTheHostRun) {
   Trainer host(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
   host.Run();
   o.checkpoint_path = dir + "/device.ckpt";
-  Trainer device(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  std::unique_ptr<DensityStrategy> strategy;
+  if (pass_strategy) {
+    // The trainer's own seeding of its built-in strategy.
+    DensityOptions density = o.density;
+    density.seed = o.seed ^ 0x9e3779b97f4a7c15ull;
+    strategy = MakeInriaDensityStrategy(density, 3.3);
+  }
+  Trainer device(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer(),
+                 std::move(strategy));
   device.UseDeviceStep(MakeEmulatedStep);
   EmulatedDeviceStep::pulls = EmulatedDeviceStep::pushes = 0;
-  EmulatedDeviceStep::steps = 0;
+  EmulatedDeviceStep::steps = EmulatedDeviceStep::density_changes = 0;
   device.Run();
-  EXPECT_GT(EmulatedDeviceStep::steps, 30);
-  // Model and moments come up and go back at the densification and reset
-  // iterations (6, 12, 18, 24, 30), the model comes up for the three
-  // evaluations and both for the two checkpoints, and both go down once at
-  // the start: far fewer transfers than iterations.
-  EXPECT_LE(EmulatedDeviceStep::pulls, 2 * 5 + 3 + 2 * 2);
-  EXPECT_LE(EmulatedDeviceStep::pushes, 2 + 2 * 5);
-  EXPECT_GE(EmulatedDeviceStep::pushes, 2 + 2 * 5);
-  ASSERT_NE(host.model().size(), s.init.size());
+  const Transfers transfers{
+      EmulatedDeviceStep::pulls, EmulatedDeviceStep::pushes,
+      EmulatedDeviceStep::steps, EmulatedDeviceStep::density_changes};
+  EXPECT_NE(host.model().size(), s.init.size());
   ExpectSameState(host, device);
   EXPECT_EQ(host.log_lines().size(), device.log_lines().size());
   for (size_t i = 0; i < host.log_lines().size(); ++i) {
@@ -468,13 +509,40 @@ TEST(TrainerDeviceProtocol, EmulatedDeviceRunEqualsTheHostRun) {
     a.erase("seconds"), b.erase("seconds");
     EXPECT_EQ(a, b) << "log line " << i;
   }
-  // The checkpoints hold the same state (a stale host copy would not).
+  // The checkpoints hold the same state (a stale host copy would not), and
+  // the device's density state is written as the CPU strategy's bytes.
   const TrainingCheckpoint a = ReadCheckpoint(dir + "/host.ckpt");
   const TrainingCheckpoint b = ReadCheckpoint(dir + "/device.ckpt");
   EXPECT_EQ(a.iteration, 30);
   EXPECT_EQ(a.model.means, b.model.means);
   EXPECT_EQ(a.adam[0].exp_avg_sq, b.adam[0].exp_avg_sq);
   EXPECT_EQ(a.density_state, b.density_state);
+  return transfers;
+}
+
+// The device path's sync protocol, on the host emulation, with the
+// trainer's built-in strategy: the device step owns density control, so the
+// model and moments go up once at the start and come down only for the
+// three evaluations (model) and the two checkpoints (both): no transfer at
+// the densification and reset iterations.
+TEST(TrainerDeviceProtocol, EmulatedDeviceRunEqualsTheHostRun) {
+  const Transfers t = ExpectEmulatedRunEqualsHostRun(false);
+  EXPECT_GT(t.steps, 30);
+  // Densified at 6, 12, 18, 24, 30 (18 also resets) on the device.
+  EXPECT_EQ(t.density_changes, 5);
+  EXPECT_EQ(t.pushes, 2);
+  EXPECT_EQ(t.pulls, 3 + 2 * 2);
+}
+
+// A strategy passed in stays on the host: model and moments come down and
+// go back up at each of the five densification / reset iterations besides
+// the evaluations, checkpoints and the start.
+TEST(TrainerDeviceProtocol, PassedStrategyKeepsTheHostRoundTrip) {
+  const Transfers t = ExpectEmulatedRunEqualsHostRun(true);
+  EXPECT_GT(t.steps, 30);
+  EXPECT_EQ(t.density_changes, 0);
+  EXPECT_LE(t.pulls, 2 * 5 + 3 + 2 * 2);
+  EXPECT_EQ(t.pushes, 2 + 2 * 5);
 }
 
 // Resuming a device-path trainer pushes the restored state to the device:
@@ -495,6 +563,12 @@ TEST(TrainerDeviceProtocol, EmulatedDeviceResumeEqualsTheHostRun) {
   resumed.Resume(dir + "/run.ckpt");
   resumed.Run();
   ExpectSameState(host, resumed);
+  // The device's checkpoint (its density state included) resumes on the
+  // host path too.
+  Trainer on_host(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  on_host.Resume(dir + "/run.ckpt");
+  on_host.Run();
+  ExpectSameState(host, on_host);
 }
 
 // Training steps with the CUDA rasterizer equal the CPU trainer's: the same
@@ -524,6 +598,49 @@ TEST(TrainerCuda, StepsMatchTheCpuTrainer) {
   EXPECT_EQ(a.split, b.split);
   EXPECT_EQ(a.pruned, b.pruned);
   EXPECT_EQ(cpu.model().size(), gpu.model().size());
+}
+
+// Density control on the GPU (the trainer's built-in strategy runs as
+// CudaDensityControl) takes the CPU trainer's decisions through the
+// densifications at 6, 12 and 18 and the opacity reset at 18: the same
+// clone / split / prune counts at every iteration, the same Gaussian count,
+// parameters within ExpectModelsAgree's tolerance, and a checkpointed
+// density state in the CPU strategy's layout that a CPU trainer resumes.
+TEST(TrainerCuda, DeviceDensityControlMatchesTheCpuTrainer) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene();
+  const std::string dir = TempDir("cuda_density");
+  const TrainerOptions o = SmallRun(20);
+  Trainer cpu(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  Trainer gpu(o, s.views, s.train, s.init, 3.3, MakeRasterizer(Device::kCuda));
+  size_t changed = 0;
+  bool reset = false;
+  for (int i = 0; i < 19; ++i) {
+    const IterationStats a = cpu.Step(), b = gpu.Step();
+    EXPECT_EQ(a.cloned, b.cloned) << "iteration " << a.iteration;
+    EXPECT_EQ(a.split, b.split) << "iteration " << a.iteration;
+    EXPECT_EQ(a.pruned, b.pruned) << "iteration " << a.iteration;
+    ASSERT_EQ(a.num_gaussians, b.num_gaussians) << "iteration " << a.iteration;
+    changed += a.cloned + a.split + a.pruned;
+    if (a.iteration == 18) {
+      const float cap = ResetOpacityLogit(10.f, o.density.reset_opacity);
+      for (float logit : gpu.model().opacity_logits) ASSERT_LE(logit, cap);
+      reset = true;
+    }
+  }
+  EXPECT_GT(changed, 0u);  // the comparison is not vacuous
+  EXPECT_TRUE(reset);
+  testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.3, 19);
+  cpu.SaveCheckpoint(dir + "/cpu.ckpt");
+  gpu.SaveCheckpoint(dir + "/gpu.ckpt");
+  const TrainingCheckpoint a = ReadCheckpoint(dir + "/cpu.ckpt");
+  const TrainingCheckpoint b = ReadCheckpoint(dir + "/gpu.ckpt");
+  EXPECT_EQ(a.density_state.size(), b.density_state.size());
+  Trainer resumed(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  resumed.Resume(dir + "/gpu.ckpt");
+  const IterationStats last_cpu = cpu.Step(), last_resumed = resumed.Step();
+  EXPECT_EQ(last_cpu.num_gaussians, last_resumed.num_gaussians);
+  EXPECT_EQ(resumed.model().CountNonFinite(), 0u);
 }
 
 // A GPU run's checkpoint holds its device state (the trainer brings model
