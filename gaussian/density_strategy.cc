@@ -52,8 +52,10 @@ void GatherModel(const std::vector<int64_t>& parent, GaussianModel* model) {
     std::vector<float>& v = GroupParams(*model, group);
     const size_t stride = GroupStride(*model, group);
     std::vector<float> out(parent.size() * stride);
+    // SH degree 0 has no f_rest: indexing its empty vector would be UB.
+    if (stride == 0) continue;
     for (size_t i = 0; i < parent.size(); ++i) {
-      std::memcpy(&out[i * stride], &v[parent[i] * stride],
+      std::memcpy(out.data() + i * stride, v.data() + parent[i] * stride,
                   stride * sizeof(float));
     }
     v.swap(out);
