@@ -139,24 +139,11 @@ class InriaDensityStrategy : public DensityStrategy {
   }
 
   std::string SaveState() const override {
-    std::ostringstream out;
-    WriteVector(out, grad_accum_);
-    WriteVector(out, denom_);
-    WriteVector(out, max_radii_);
-    out << rng_;
-    return out.str();
+    return EncodeInriaDensityState(grad_accum_, denom_, max_radii_, rng_);
   }
 
   void LoadState(const std::string& bytes) override {
-    std::istringstream in(bytes);
-    ReadVector(in, &grad_accum_);
-    ReadVector(in, &denom_);
-    ReadVector(in, &max_radii_);
-    in >> rng_;
-    if (!in || denom_.size() != grad_accum_.size() ||
-        max_radii_.size() != grad_accum_.size()) {
-      Fail("density state: inconsistent statistics");
-    }
+    DecodeInriaDensityState(bytes, &grad_accum_, &denom_, &max_radii_, &rng_);
   }
 
   size_t BytesPerGaussian() const override {
@@ -335,6 +322,34 @@ std::unique_ptr<DensityStrategy> MakeInriaDensityStrategy(
 
 std::unique_ptr<DensityStrategy> MakeFixedDensityStrategy() {
   return std::make_unique<FixedDensityStrategy>();
+}
+
+std::string EncodeInriaDensityState(const std::vector<float>& grad_accum,
+                                    const std::vector<uint16_t>& denom,
+                                    const std::vector<float>& max_radii,
+                                    const std::mt19937_64& rng) {
+  std::ostringstream out;
+  WriteVector(out, grad_accum);
+  WriteVector(out, denom);
+  WriteVector(out, max_radii);
+  out << rng;
+  return out.str();
+}
+
+void DecodeInriaDensityState(const std::string& bytes,
+                             std::vector<float>* grad_accum,
+                             std::vector<uint16_t>* denom,
+                             std::vector<float>* max_radii,
+                             std::mt19937_64* rng) {
+  std::istringstream in(bytes);
+  ReadVector(in, grad_accum);
+  ReadVector(in, denom);
+  ReadVector(in, max_radii);
+  in >> *rng;
+  if (!in || denom->size() != grad_accum->size() ||
+      max_radii->size() != grad_accum->size()) {
+    Fail("density state: inconsistent statistics");
+  }
 }
 
 }  // namespace watergs

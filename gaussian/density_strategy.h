@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -100,6 +101,21 @@ class DensityStrategy {
 // cameras_extent.
 std::unique_ptr<DensityStrategy> MakeInriaDensityStrategy(
     const DensityOptions& options, double scene_extent);
+
+// The bytes of Inria's density state in a checkpoint (statistics per
+// Gaussian and the split-sample RNG), shared by the CPU strategy and the CUDA
+// density control so that checkpoints resume on either device.
+std::string EncodeInriaDensityState(const std::vector<float>& grad_accum,
+                                    const std::vector<uint16_t>& denom,
+                                    const std::vector<float>& max_radii,
+                                    const std::mt19937_64& rng);
+// Inverse of EncodeInriaDensityState; throws Error for corrupt, truncated
+// or inconsistent bytes (counts are checked before anything is allocated).
+void DecodeInriaDensityState(const std::string& bytes,
+                             std::vector<float>* grad_accum,
+                             std::vector<uint16_t>* denom,
+                             std::vector<float>* max_radii,
+                             std::mt19937_64* rng);
 
 // A strategy that never changes the model (fine-tuning without ADC).
 std::unique_ptr<DensityStrategy> MakeFixedDensityStrategy();

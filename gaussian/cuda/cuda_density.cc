@@ -5,12 +5,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
 #include "gaussian/cuda/adam_kernels.h"
 #include "gaussian/cuda/cuda_check.h"
 #include "gaussian/cuda/cuda_device.h"
 #include "gaussian/cuda/density_kernels.h"
+#include "gaussian/density_strategy.h"
 #include "gaussian/error.h"
 #include "gaussian/gaussian_model.h"
 
@@ -63,31 +63,6 @@ void GatherModel(const CudaDensityModel& model, const int64_t* index,
         group.buffer->data(), index, count, group.stride, out.data(), nullptr));
     *group.buffer = std::move(out);
   }
-}
-
-template <typename T>
-void WriteVector(std::ostream& out, const std::vector<T>& v) {
-  const uint64_t n = v.size();
-  out.write(reinterpret_cast<const char*>(&n), sizeof(n));
-  out.write(reinterpret_cast<const char*>(v.data()), n * sizeof(T));
-}
-
-// The CPU strategy's ReadVector: the count is checked against the bytes
-// left before anything is allocated.
-template <typename T>
-void ReadVector(std::istream& in, std::vector<T>* v) {
-  uint64_t n = 0;
-  in.read(reinterpret_cast<char*>(&n), sizeof(n));
-  const std::streampos here = in.tellg();
-  in.seekg(0, std::ios::end);
-  const std::streamoff left = in.tellg() - here;
-  in.seekg(here);
-  if (!in || n > uint64_t(left) / sizeof(T)) {
-    Fail("density state: corrupt size");
-  }
-  v->resize(n);
-  in.read(reinterpret_cast<char*>(v->data()), n * sizeof(T));
-  if (!in) Fail("density state: truncated");
 }
 
 }  // namespace
@@ -294,27 +269,14 @@ std::string CudaDensityControl::SaveState() const {
   std::vector<float> grad_accum, max_radii;
   std::vector<uint16_t> denom;
   DownloadStatistics(&grad_accum, &denom, &max_radii);
-  std::ostringstream out;
-  WriteVector(out, grad_accum);
-  WriteVector(out, denom);
-  WriteVector(out, max_radii);
-  out << rng_;
-  return out.str();
+  return EncodeInriaDensityState(grad_accum, denom, max_radii, rng_);
 }
 
 void CudaDensityControl::LoadState(const std::string& bytes) {
   std::vector<float> grad_accum, max_radii;
   std::vector<uint16_t> denom;
   std::mt19937_64 rng;
-  std::istringstream in(bytes);
-  ReadVector(in, &grad_accum);
-  ReadVector(in, &denom);
-  ReadVector(in, &max_radii);
-  in >> rng;
-  if (!in || denom.size() != grad_accum.size() ||
-      max_radii.size() != grad_accum.size()) {
-    Fail("density state: inconsistent statistics");
-  }
+  DecodeInriaDensityState(bytes, &grad_accum, &denom, &max_radii, &rng);
   grad_accum_.Upload(grad_accum);
   denom_.Upload(denom);
   max_radii_.Upload(max_radii);
