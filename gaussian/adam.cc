@@ -280,17 +280,24 @@ void Adam::Init(const GaussianModel& model) {
   rejected_total_ = 0;
 }
 
-void Adam::SetIteration(int64_t iteration) {
-  const AdamOptions& o = options_;
-  lr_[Index(ParamGroup::kXyz)] = ExponentialLr(
-      iteration, o.position_lr_init * scene_extent_,
-      o.position_lr_final * scene_extent_, o.position_lr_delay_steps,
+std::array<double, kNumParamGroups> GroupLearningRates(const AdamOptions& o,
+                                                       double scene_extent,
+                                                       int64_t iteration) {
+  std::array<double, kNumParamGroups> lr{};
+  lr[static_cast<int>(ParamGroup::kXyz)] = ExponentialLr(
+      iteration, o.position_lr_init * scene_extent,
+      o.position_lr_final * scene_extent, o.position_lr_delay_steps,
       o.position_lr_delay_mult, o.position_lr_max_steps);
-  lr_[Index(ParamGroup::kFDc)] = o.feature_lr;
-  lr_[Index(ParamGroup::kFRest)] = o.feature_rest_lr;
-  lr_[Index(ParamGroup::kOpacity)] = o.opacity_lr;
-  lr_[Index(ParamGroup::kScaling)] = o.scaling_lr;
-  lr_[Index(ParamGroup::kRotation)] = o.rotation_lr;
+  lr[static_cast<int>(ParamGroup::kFDc)] = o.feature_lr;
+  lr[static_cast<int>(ParamGroup::kFRest)] = o.feature_rest_lr;
+  lr[static_cast<int>(ParamGroup::kOpacity)] = o.opacity_lr;
+  lr[static_cast<int>(ParamGroup::kScaling)] = o.scaling_lr;
+  lr[static_cast<int>(ParamGroup::kRotation)] = o.rotation_lr;
+  return lr;
+}
+
+void Adam::SetIteration(int64_t iteration) {
+  lr_ = GroupLearningRates(options_, scene_extent_, iteration);
 }
 
 bool Adam::UsesHalfMoments(ParamGroup group) const {

@@ -55,6 +55,12 @@ struct AdamOptions {
   bool half_moments = false;
 };
 
+// Each group's learning rate at 1-based `iteration` (indexed by ParamGroup):
+// Inria's exponentially decaying position rate times the scene extent, the
+// other groups constant. Shared by the CPU and CUDA optimisers.
+std::array<double, kNumParamGroups> GroupLearningRates(
+    const AdamOptions& options, double scene_extent, int64_t iteration);
+
 // Moments of one group and the update count used for bias correction
 // (shared by the group, as in torch). Full moments: exp_avg and exp_avg_sq,
 // N x stride floats each. Compact moments: exp_avg_q (N x stride 8-bit

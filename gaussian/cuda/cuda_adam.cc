@@ -77,16 +77,7 @@ void CudaAdam::Init(size_t n, int sh_degree) {
 }
 
 void CudaAdam::SetIteration(int64_t iteration) {
-  const AdamOptions& o = options_;
-  lr_[Index(ParamGroup::kXyz)] = ExponentialLr(
-      iteration, o.position_lr_init * scene_extent_,
-      o.position_lr_final * scene_extent_, o.position_lr_delay_steps,
-      o.position_lr_delay_mult, o.position_lr_max_steps);
-  lr_[Index(ParamGroup::kFDc)] = o.feature_lr;
-  lr_[Index(ParamGroup::kFRest)] = o.feature_rest_lr;
-  lr_[Index(ParamGroup::kOpacity)] = o.opacity_lr;
-  lr_[Index(ParamGroup::kScaling)] = o.scaling_lr;
-  lr_[Index(ParamGroup::kRotation)] = o.rotation_lr;
+  lr_ = GroupLearningRates(options_, scene_extent_, iteration);
 }
 
 void CudaAdam::SetGroupEnabled(ParamGroup group, bool enabled) {
