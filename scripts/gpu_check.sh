@@ -46,6 +46,10 @@ stage_sanitize() {
     compute-sanitizer --tool "$tool" --error-exitcode 9 \
       "$build/tests/watergs_gaussian_test" --gtest_filter='CudaRasterizer.DeepTileStackMatchesCpu:CudaRasterizer.CropRectsMatchCpu:CudaRasterizer.EmptyModelRendersBackground:CudaRasterizer.ShDegreeZeroModelMatchesCpu' \
       > "$out/sanitizer_$tool.txt" 2>&1 || { rc=1; echo "compute-sanitizer $tool: errors (sanitizer_$tool.txt)"; }
+    # The device-resident embedding step (distortion scatter, decoder patch).
+    compute-sanitizer --tool "$tool" --error-exitcode 9 \
+      "$build/tests/watergs_watermark_test" --gtest_filter='EmbedderCuda.DeviceResident*' \
+      > "$out/sanitizer_embed_$tool.txt" 2>&1 || { rc=1; echo "compute-sanitizer $tool: errors (sanitizer_embed_$tool.txt)"; }
   done
   return $rc
 }
@@ -56,6 +60,14 @@ stage_bench() {
     "$build/benchmarks/raster_benchmark" --device cuda --scenes 1000 --repeats 9
     "$build/benchmarks/train_benchmark" --device cuda --json "$out/train_cuda.json"
     "$build/benchmarks/decoder_benchmark" --device cuda 5
+    # Embedding: the 1M-Gaussian 1 MP scene (issue 8's 10k-iteration target)
+    # and the demo scene after a short GPU training run.
+    "$build/benchmarks/embed_benchmark" --synthetic 1000000 \
+      watermark/models/decoder_48.bin 20 cuda
+    "$build/watergs" train --device cuda --workspace_path datasets_scripts/demo_scene \
+      --output_path "$build/demo_gpu" --iterations 3000 --downscale 2 > /dev/null &&
+      "$build/benchmarks/embed_benchmark" "$build/demo_gpu/point_cloud.ply" \
+        datasets_scripts/demo_scene watermark/models/decoder_48.bin 30 2 cuda
   } > "$out/benchmarks.txt" 2>&1
   tail -40 "$out/benchmarks.txt"
 }

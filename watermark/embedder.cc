@@ -16,6 +16,12 @@
 #include "watermark/nn_layers.h"
 #include "watermark/tensor.h"
 
+#ifdef WATERGS_WITH_CUDA
+#include "gaussian/cuda/cuda_rasterizer_device.h"
+#include "watermark/cuda/cuda_embedding_step.h"
+#include "watermark/cuda/cuda_hidden.h"
+#endif
+
 namespace watergs {
 namespace {
 
@@ -46,29 +52,38 @@ void AddPatch(const ImageRGB& patch, const PixelRect& rect, float scale,
 
 }  // namespace
 
-double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
-                      const PixelRect& crop, const std::vector<float>& targets,
-                      double gamma, ImageRGB* grad_image, int* bit_errors) {
-  ImageRGB cropped, grad;
-  if (!crop.empty()) CropImage(image, crop, &cropped);
-  const ImageRGB& decoded = crop.empty() ? image : cropped;
-  const std::vector<float> logits = decoder.Logits(decoded);
+double MessageBce(const std::vector<float>& logits,
+                  const std::vector<float>& targets, double gamma,
+                  std::vector<float>* dlogits, int* bit_errors) {
   if (logits.size() != targets.size()) {
     Fail("message loss: the decoder reads " + std::to_string(logits.size()) +
          " bits, the message has " + std::to_string(targets.size()));
   }
   Tensor logit_tensor(1, static_cast<int>(logits.size()), 1, 1);
   logit_tensor.data = logits;
-  Tensor dlogits;
-  const double bce = BceWithLogits(logit_tensor, targets, &dlogits);
+  Tensor grad;
+  const double bce = BceWithLogits(logit_tensor, targets, &grad);
   if (bit_errors) {
     *bit_errors = 0;
     for (size_t i = 0; i < targets.size(); ++i) {
       *bit_errors += (logits[i] > 0) != (targets[i] > 0.5f);
     }
   }
-  for (float& g : dlogits.data) g *= static_cast<float>(gamma);
-  decoder.InputGradient(decoded, dlogits.data, &grad);
+  for (float& g : grad.data) g *= static_cast<float>(gamma);
+  *dlogits = std::move(grad.data);
+  return bce;
+}
+
+double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
+                      const PixelRect& crop, const std::vector<float>& targets,
+                      double gamma, ImageRGB* grad_image, int* bit_errors) {
+  ImageRGB cropped, grad;
+  if (!crop.empty()) CropImage(image, crop, &cropped);
+  const ImageRGB& decoded = crop.empty() ? image : cropped;
+  std::vector<float> dlogits;
+  const double bce =
+      MessageBce(decoder.Logits(decoded), targets, gamma, &dlogits, bit_errors);
+  decoder.InputGradient(decoded, dlogits, &grad);
   AddPatch(grad,
            crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop,
            1.f, grad_image);
@@ -187,10 +202,10 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
       std::all_of(options_.trainable.begin(), options_.trainable.end(),
                   [](bool t) { return t; });
   if (!all_trainable) options_.densify = false;
+  density_options_ = options_.density;
+  density_options_.seed = options_.seed ^ 0x9e3779b97f4a7c15ull;
   if (options_.densify) {
-    DensityOptions density = options_.density;
-    density.seed = options_.seed ^ 0x9e3779b97f4a7c15ull;
-    strategy_ = MakeInriaDensityStrategy(density, scene_extent_);
+    strategy_ = MakeInriaDensityStrategy(density_options_, scene_extent_);
   } else {
     strategy_ = MakeFixedDensityStrategy();
   }
@@ -201,7 +216,27 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   strategy_->Init(model_);
   origin_.resize(model_.size());
   for (size_t i = 0; i < origin_.size(); ++i) origin_[i] = int64_t(i);
+#ifdef WATERGS_WITH_CUDA
+  // With a CUDA rasterizer and decoder everything per Gaussian stays on the
+  // GPU; the compact and bfloat16 moments have no CUDA Adam and keep the
+  // host step (the rasterizer and decoder still run on the GPU).
+  auto* cuda_rasterizer = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
+  auto* cuda_decoder = dynamic_cast<CudaDecoder*>(decoder_);
+  if (cuda_rasterizer && cuda_decoder && !options_.adam.compact_moments &&
+      !options_.adam.half_moments) {
+    device_ = std::make_unique<CudaEmbeddingStep>(
+        cuda_rasterizer, cuda_decoder, options_.adam, scene_extent_,
+        options_.beta, options_.gamma, targets_, &model_, &adam_);
+    if (options_.densify) {
+      device_->TakeDensityControl(density_options_, scene_extent_,
+                                  strategy_->SaveState());
+      device_density_ = true;
+    }
+  }
+#endif
 }
+
+Embedder::~Embedder() = default;
 
 std::string Embedder::RunSignature() const {
   nlohmann::json j;
@@ -239,44 +274,74 @@ EmbedStepStats Embedder::Step() {
   EmbedStepStats stats;
   stats.iteration = it;
   adam_.SetIteration(it);
-  const size_t view = NextView();
-  const RenderCamera camera = views_.Camera(view);
-  const std::shared_ptr<const ImageRGB> truth = views_.Image(view);
-  const PixelRect crop = SampleRect(camera.width, camera.height);
+  IterationPlan plan;
+  plan.view = NextView();
+  plan.camera = views_.Camera(plan.view);
+  plan.truth = views_.Image(plan.view);
+  plan.crop = SampleRect(plan.camera.width, plan.camera.height);
+  plan.layer = sampler_ ? &sampler_->Sample(rng_) : nullptr;
+  stats.distortion = plan.layer ? ToString(plan.layer->spec()) : "none";
+  plan.render_options.background = options_.background;
+  if (!options_.full_frame_image_loss) plan.render_options.rect = plan.crop;
+  // The decoder reads the crop; a cropped render is all crop.
+  if (plan.render_options.rect.empty() && options_.crop_size > 0) {
+    plan.decoder_crop = plan.crop;
+  }
 
+  const DensityEvent event = device_ ? DeviceIteration(it, plan, &stats)
+                                     : HostIteration(it, plan, &stats);
+  const size_t num_gaussians =
+      device_ ? device_->NumGaussians() : model_.size();
+  if (num_gaussians == 0) {
+    Fail("embed stopped at iteration " + std::to_string(it) +
+         ": density control pruned every Gaussian");
+  }
+  if (event.densified) {
+    std::vector<int64_t> origin(event.parent.size());
+    for (size_t i = 0; i < origin.size(); ++i) {
+      origin[i] = event.parent[i] < 0 ? -1 : origin_[event.parent[i]];
+    }
+    origin_ = std::move(origin);
+  }
+  total_timings_.Add(stats.timings);
+  stats.num_gaussians = num_gaussians;
+  iteration_ = it;
+  return stats;
+}
+
+void Embedder::CheckLossFinite(int64_t it, const IterationPlan& plan,
+                               const EmbedStepStats& stats) const {
+  if (!std::isfinite(stats.total)) {
+    Fail("embed stopped at iteration " + std::to_string(it) +
+         ": the loss is not finite on view " + views_.Name(plan.view));
+  }
+}
+
+DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
+                                     EmbedStepStats* stats) {
   // N(Θ): the identity renders the model itself (no copy, no scatter).
   auto t0 = Clock::now();
-  const DistortionLayer* layer = sampler_ ? &sampler_->Sample(rng_) : nullptr;
-  const bool distort = layer && !layer->IsIdentity();
-  if (distort) layer->Apply(model_, rng_, &distorted_, &source_);
-  stats.distortion = layer ? ToString(layer->spec()) : "none";
+  const bool distort = plan.layer && !plan.layer->IsIdentity();
+  if (distort) plan.layer->Apply(model_, rng_, &distorted_, &source_);
   const GaussianModel& rendered_model = distort ? distorted_ : model_;
 
   auto t1 = Clock::now();
-  RenderOptions render_options;
-  render_options.background = options_.background;
-  if (!options_.full_frame_image_loss) render_options.rect = crop;
   std::unique_ptr<RenderContext> context;
-  rasterizer_->Forward(rendered_model, camera, render_options, &render_,
-                       &context);
+  rasterizer_->Forward(rendered_model, plan.camera, plan.render_options,
+                       &render_, &context);
   auto t2 = Clock::now();
-  const bool cropped = !render_options.rect.empty();
-  if (cropped) CropImage(*truth, crop, &truth_crop_);
-  stats.image =
-      loss_.Evaluate(render_, cropped ? truth_crop_ : *truth, &grad_image_);
+  const bool cropped = !plan.render_options.rect.empty();
+  if (cropped) CropImage(*plan.truth, plan.crop, &truth_crop_);
+  stats->image = loss_.Evaluate(render_, cropped ? truth_crop_ : *plan.truth,
+                                &grad_image_);
   auto t3 = Clock::now();
 
   // Message term on the crop: BCE(m, D(crop)) and its image gradient.
-  PixelRect decoder_crop;
-  if (!cropped && options_.crop_size > 0) decoder_crop = crop;
-  stats.bce = AddMessageLoss(*decoder_, render_, decoder_crop, targets_,
-                             options_.gamma, &grad_image_, &stats.bit_errors);
-  stats.total = stats.image.total + options_.gamma * stats.bce;
+  stats->bce = AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
+                              options_.gamma, &grad_image_, &stats->bit_errors);
+  stats->total = stats->image.total + options_.gamma * stats->bce;
   auto t4 = Clock::now();
-  if (!std::isfinite(stats.total)) {
-    Fail("embed stopped at iteration " + std::to_string(it) +
-         ": the loss is not finite on view " + views_.Name(view));
-  }
+  CheckLossFinite(it, plan, *stats);
 
   if (distort) {
     rasterizer_->Backward(rendered_model, *context, grad_image_,
@@ -291,42 +356,71 @@ EmbedStepStats Embedder::Step() {
 
   const std::vector<float>* radii = nullptr;
   if (strategy_->WantsRadii(it)) {
-    ComputeScreenRadii(model_, camera, grads_.visible, &radii_);
+    ComputeScreenRadii(model_, plan.camera, grads_.visible, &radii_);
     radii = &radii_;
   }
-  const DensityEvent event =
+  DensityEvent event =
       strategy_->PostBackward(it, grads_, radii, &model_, &adam_);
-  if (model_.size() == 0) {
-    Fail("embed stopped at iteration " + std::to_string(it) +
-         ": density control pruned every Gaussian");
-  }
-  if (event.densified) {
-    std::vector<int64_t> origin(event.parent.size());
-    for (size_t i = 0; i < origin.size(); ++i) {
-      origin[i] = event.parent[i] < 0 ? -1 : origin_[event.parent[i]];
-    }
-    origin_ = std::move(origin);
-  }
   auto t6 = Clock::now();
-  if (!event.densified) adam_.Step(grads_, &model_);
+  if (!event.densified && model_.size() > 0) adam_.Step(grads_, &model_);
   auto t7 = Clock::now();
 
-  stats.timings.distortion = Seconds(t0, t1);
-  stats.timings.render = Seconds(t1, t2);
-  stats.timings.image_loss = Seconds(t2, t3);
-  stats.timings.decoder = Seconds(t3, t4);
-  stats.timings.backward = Seconds(t4, t5);
-  stats.timings.density = Seconds(t5, t6);
-  stats.timings.adam = Seconds(t6, t7);
-  total_timings_.Add(stats.timings);
-  stats.num_gaussians = model_.size();
-  iteration_ = it;
-  return stats;
+  EmbedTimings& t = stats->timings;
+  t.distortion = Seconds(t0, t1);
+  t.render = Seconds(t1, t2);
+  t.image_loss = Seconds(t2, t3);
+  t.decoder = Seconds(t3, t4);
+  t.backward = Seconds(t4, t5);
+  t.density = Seconds(t5, t6);
+  t.adam = Seconds(t6, t7);
+  return event;
+}
+
+DensityEvent Embedder::DeviceIteration(int64_t it, const IterationPlan& plan,
+                                       EmbedStepStats* stats) {
+#ifdef WATERGS_WITH_CUDA
+  CudaEmbedView view;
+  view.camera = plan.camera;
+  view.options = plan.render_options;
+  const bool cropped = !plan.render_options.rect.empty();
+  if (cropped) CropImage(*plan.truth, plan.crop, &truth_crop_);
+  view.truth = cropped ? &truth_crop_ : plan.truth.get();
+  view.decoder_crop = plan.decoder_crop;
+  view.layer = plan.layer;
+  const CudaEmbedLoss loss = device_->Forward(view, rng_);
+  stats->image = loss.image;
+  stats->bce = loss.bce;
+  stats->bit_errors = loss.bit_errors;
+  stats->total = stats->image.total + options_.gamma * stats->bce;
+  CheckLossFinite(it, plan, *stats);
+  EmbedTimings& t = stats->timings;
+  t.distortion = loss.distortion_s;
+  t.render = loss.render_s;
+  t.image_loss = loss.image_loss_s;
+  t.decoder = loss.decoder_s;
+  return device_->BackwardAndUpdate(it, &t.backward, &t.density, &t.adam);
+#else
+  (void)it, (void)plan, (void)stats;
+  Fail("embed: built without CUDA");
+#endif
+}
+
+void Embedder::SyncToHost() const {
+  if (device_) {
+    device_->PullModel();
+    device_->PullAdam();
+  }
+}
+
+const GaussianModel& Embedder::model() const {
+  if (device_) device_->PullModel();
+  return model_;
 }
 
 CheckResult Embedder::Check(const std::vector<size_t>& views) {
   CheckResult result;
   if (views.empty()) return result;
+  if (device_) device_->PullModel();
   RenderOptions render_options;
   render_options.background = options_.background;
   std::vector<double> mean_logits(message_.size(), 0.0);
@@ -397,6 +491,7 @@ bool Embedder::Run() {
 }
 
 void Embedder::SaveCheckpoint(const std::string& path) const {
+  SyncToHost();
   TrainingCheckpoint c;
   c.iteration = iteration_;
   c.active_sh_degree = model_.sh_degree;
@@ -405,7 +500,8 @@ void Embedder::SaveCheckpoint(const std::string& path) const {
     c.adam[g] = adam_.state(static_cast<ParamGroup>(g));
   }
   c.adam_rejected = adam_.rejected_total();
-  c.density_state = strategy_->SaveState();
+  c.density_state =
+      device_density_ ? device_->SaveDensityState() : strategy_->SaveState();
   std::ostringstream rng_text;
   rng_text << rng_;
   // The RNG and the descent of each Gaussian from the input, as JSON.
@@ -464,6 +560,10 @@ void Embedder::Resume(const std::string& path) {
     FailAt(path, "checkpoint state is corrupt");
   }
   iteration_ = c.iteration;
+  if (device_) {
+    device_->MarkHostEdited();
+    if (device_density_) device_->LoadDensityState(c.density_state);
+  }
 }
 
 }  // namespace watergs

@@ -116,6 +116,8 @@ struct CheckResult {
   double psnr = 0;
 };
 
+class CudaEmbeddingStep;
+
 class Embedder {
  public:
   // `views` (outliving the embedder) supplies cameras and images;
@@ -125,6 +127,7 @@ class Embedder {
            std::vector<size_t> train_views, GaussianModel model,
            double scene_extent, BitDecoder* decoder, Bits message,
            std::unique_ptr<Rasterizer> rasterizer);
+  ~Embedder();
 
   // One fine-tuning iteration. Throws Error on a non-finite loss.
   EmbedStepStats Step();
@@ -138,18 +141,45 @@ class Embedder {
   void Resume(const std::string& path);
   void SaveCheckpoint(const std::string& path) const;
 
-  const GaussianModel& model() const { return model_; }
+  const GaussianModel& model() const;
   // For each Gaussian now, the index of the input Gaussian it descends from.
   const std::vector<int64_t>& origin() const { return origin_; }
   int64_t iteration() const { return iteration_; }
   // Sum of per-stage seconds over all iterations so far.
   const EmbedTimings& total_timings() const { return total_timings_; }
   Rasterizer& rasterizer() { return *rasterizer_; }
+  // True when the iterations run on the GPU with the model resident there
+  // (a CUDA rasterizer and decoder, float32 moments).
+  bool device_resident() const { return device_ != nullptr; }
 
  private:
+  // What one iteration renders and decodes (drawn from rng_ by Step).
+  struct IterationPlan {
+    size_t view = 0;
+    RenderCamera camera;
+    std::shared_ptr<const ImageRGB> truth;
+    // The sampled crop, and the render / decoder regions it sets.
+    PixelRect crop;
+    RenderOptions render_options;
+    PixelRect decoder_crop;
+    // Null without distortion layers.
+    const DistortionLayer* layer = nullptr;
+  };
+
   std::string RunSignature() const;
   size_t NextView();
   PixelRect SampleRect(int width, int height);
+  // The iteration's loss, backward, density control and Adam on the host
+  // model, or on the device-resident one.
+  DensityEvent HostIteration(int64_t it, const IterationPlan& plan,
+                             EmbedStepStats* stats);
+  DensityEvent DeviceIteration(int64_t it, const IterationPlan& plan,
+                               EmbedStepStats* stats);
+  // Error unless the iteration's loss is finite.
+  void CheckLossFinite(int64_t it, const IterationPlan& plan,
+                       const EmbedStepStats& stats) const;
+  // Brings the host model and Adam up to date with the device's.
+  void SyncToHost() const;
 
   EmbedOptions options_;
   const TrainingViews& views_;
@@ -162,6 +192,8 @@ class Embedder {
   std::unique_ptr<Rasterizer> rasterizer_;
   std::unique_ptr<DistortionSampler> sampler_;
   std::unique_ptr<DensityStrategy> strategy_;
+  // Density options with the run's seed (the strategy's).
+  DensityOptions density_options_;
   Adam adam_;
   TrainingLoss loss_;
   std::mt19937_64 rng_;
@@ -175,10 +207,21 @@ class Embedder {
   ImageRGB render_, truth_crop_, grad_image_;
   GaussianGradients grads_, distorted_grads_;
   std::vector<float> radii_;
+  // The device-resident step (null: iterations run on the host model), and
+  // whether it took over density control.
+  std::unique_ptr<CudaEmbeddingStep> device_;
+  bool device_density_ = false;
 };
 
 // Copies rect of `image` into `out` (resized).
 void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out);
+
+// The message term on decoded logits: returns BCE(targets, logits) (mean
+// over the bits) and sets dlogits = gamma * dBCE/dlogits; bit_errors (if not
+// null) gets the errors of the decoded bits. Error if the lengths differ.
+double MessageBce(const std::vector<float>& logits,
+                  const std::vector<float>& targets, double gamma,
+                  std::vector<float>* dlogits, int* bit_errors);
 
 // The message term on a render: returns BCE(targets, D(image[crop])) (crop
 // in image pixels, empty = all of it) and adds gamma * d BCE / d image into

@@ -33,35 +33,6 @@ void ForEachArray(const DeviceGaussianArrays& in, DeviceGaussianArrays* out,
 
 }  // namespace
 
-void DeviceGaussianArrays::Resize(size_t n) {
-  means.Resize(n * 3);
-  log_scales.Resize(n * 3);
-  quats.Resize(n * 4);
-  opacity_logits.Resize(n);
-  sh_dc.Resize(n * 3);
-  sh_rest.Resize(n * sh_rest_stride());
-}
-
-void DeviceGaussianArrays::Upload(const GaussianModel& model) {
-  sh_degree = model.sh_degree;
-  means.Upload(model.means);
-  log_scales.Upload(model.log_scales);
-  quats.Upload(model.quats);
-  opacity_logits.Upload(model.opacity_logits);
-  sh_dc.Upload(model.sh_dc);
-  sh_rest.Upload(model.sh_rest);
-}
-
-void DeviceGaussianArrays::Download(GaussianModel* model) const {
-  model->sh_degree = sh_degree;
-  means.Download(&model->means);
-  log_scales.Download(&model->log_scales);
-  quats.Download(&model->quats);
-  opacity_logits.Download(&model->opacity_logits);
-  sh_dc.Download(&model->sh_dc);
-  sh_rest.Download(&model->sh_rest);
-}
-
 CudaDistortionLayer::CudaDistortionLayer(const DistortionSpec& spec)
     : spec_(spec) {
   MakeDistortionLayer(spec);  // validates the strength
@@ -140,6 +111,16 @@ void CudaScatterRows(const float* from, const DeviceBuffer<uint32_t>& source,
   }
   WATERGS_CUDA_CHECK(cuda_distortion::LaunchScatterAddRows(
       from, source.data(), n_from, stride, to, nullptr));
+}
+
+void CudaScatterFlags(const uint8_t* from, const DeviceBuffer<uint32_t>& source,
+                      size_t n_from, uint8_t* to) {
+  if (n_from > source.size()) {
+    Fail("distortion (cuda): scatter of " + std::to_string(n_from) +
+         " flags with " + std::to_string(source.size()) + " source entries");
+  }
+  WATERGS_CUDA_CHECK(cuda_distortion::LaunchScatterOrFlags(
+      from, source.data(), n_from, to, nullptr));
 }
 
 }  // namespace watergs

@@ -13,26 +13,11 @@
 #include <vector>
 
 #include "distortion/distortion_layer.h"
+#include "gaussian/cuda/cuda_model_mirror.h"
 #include "gaussian/cuda/device_buffer.h"
 #include "gaussian/gaussian_model.h"
 
 namespace watergs {
-
-// A GaussianModel's arrays on the device, same layouts.
-struct DeviceGaussianArrays {
-  // Highest SH degree stored (0-3); sets the width of sh_rest.
-  int sh_degree = 3;
-  // N x 3, N x 3, N x 4, N, N x 3, N x sh_rest_stride() floats.
-  DeviceBuffer<float> means, log_scales, quats, opacity_logits, sh_dc, sh_rest;
-
-  // Number of Gaussians.
-  size_t size() const { return opacity_logits.size(); }
-  int sh_rest_stride() const { return 3 * (NumShCoeffs(sh_degree) - 1); }
-  // Every array sized to n Gaussians (contents undefined).
-  void Resize(size_t n);
-  void Upload(const GaussianModel& model);
-  void Download(GaussianModel* model) const;
-};
 
 class CudaDistortionLayer {
  public:
@@ -65,5 +50,10 @@ class CudaDistortionLayer {
 // += row i of `from`, i < n_from, stride floats per row.
 void CudaScatterRows(const float* from, const DeviceBuffer<uint32_t>& source,
                      size_t n_from, int stride, float* to);
+
+// The visibility flags' scatter: to[source[i]] |= from[i], i < n_from
+// (device arrays; `to` holds the undistorted model's N flags).
+void CudaScatterFlags(const uint8_t* from, const DeviceBuffer<uint32_t>& source,
+                      size_t n_from, uint8_t* to);
 
 }  // namespace watergs

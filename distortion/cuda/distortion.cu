@@ -80,6 +80,13 @@ __global__ void ScatterAddRowsKernel(const float* from, const uint32_t* source,
   *dst = __fadd_rn(*dst, from[j]);
 }
 
+__global__ void ScatterOrFlagsKernel(const uint8_t* from,
+                                     const uint32_t* source, size_t n_from,
+                                     uint8_t* to) {
+  const size_t i = blockIdx.x * size_t(blockDim.x) + threadIdx.x;
+  if (i < n_from) to[source[i]] |= from[i];
+}
+
 // The six n-element uint32 arrays of the dropout scratch, then CUB's space.
 struct DropoutLayout {
   uint32_t *keys_in, *keys_out, *indices_in, *indices_out, *keep, *position;
@@ -182,6 +189,15 @@ cudaError_t LaunchScatterAddRows(const float* from, const uint32_t* source,
   if (n_from == 0 || stride == 0) return cudaSuccess;
   ScatterAddRowsKernel<<<Blocks(n_from * stride), kThreads, 0, stream>>>(
       from, source, n_from, stride, to);
+  return cudaGetLastError();
+}
+
+cudaError_t LaunchScatterOrFlags(const uint8_t* from, const uint32_t* source,
+                                 size_t n_from, uint8_t* to,
+                                 cudaStream_t stream) {
+  if (n_from == 0) return cudaSuccess;
+  ScatterOrFlagsKernel<<<Blocks(n_from), kThreads, 0, stream>>>(from, source,
+                                                                n_from, to);
   return cudaGetLastError();
 }
 

@@ -44,5 +44,11 @@ cudaError_t LaunchScatterAddRows(const float* from, const uint32_t* source,
                                  size_t n_from, int stride, float* to,
                                  cudaStream_t stream);
 
+// to[source[i]] |= from[i], i < n_from (distinct source entries): a
+// visibility flag of a distorted Gaussian marks its source.
+cudaError_t LaunchScatterOrFlags(const uint8_t* from, const uint32_t* source,
+                                 size_t n_from, uint8_t* to,
+                                 cudaStream_t stream);
+
 }  // namespace cuda_distortion
 }  // namespace watergs

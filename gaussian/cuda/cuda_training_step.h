@@ -23,6 +23,7 @@
 #include "gaussian/cuda/cuda_adam.h"
 #include "gaussian/cuda/cuda_density.h"
 #include "gaussian/cuda/cuda_loss.h"
+#include "gaussian/cuda/cuda_model_mirror.h"
 #include "gaussian/cuda/cuda_rasterizer_device.h"
 #include "gaussian/cuda/device_buffer.h"
 #include "gaussian/device_training_step.h"
@@ -68,36 +69,17 @@ class CudaTrainingStep : public DeviceTrainingStep {
   void LoadDensityState(const std::string& state) override;
 
  private:
-  // The device model as the rasterizer reads it.
-  CudaModelArrays ModelArrays() const;
   // Sizes the gradient buffers to the device model.
   CudaGradientArrays GradientArrays();
 
   CudaRasterizer* rasterizer_;
-  CudaAdam adam_;
+  // The device model and Adam, mirroring the trainer's host copies.
+  CudaModelMirror mirror_;
   CudaTrainingLoss loss_;
-  // The trainer's host copies.
-  GaussianModel* host_model_;
-  Adam* host_adam_;
-  // Which copy is behind: the host after a device step, the device after a
-  // host edit (never both for one part).
-  bool host_model_stale_ = false, host_adam_stale_ = false;
-  bool device_model_stale_ = true, device_adam_stale_ = true;
-  // The host Adam's rejected count when the device Adam was last rebuilt
-  // (CudaAdam counts from its Init).
-  int64_t rejected_base_ = 0;
-  // Device model (GaussianModel layout) and its SH degree and count.
-  DeviceBuffer<float> means_, log_scales_, quats_, opacity_logits_, sh_dc_,
-      sh_rest_;
-  int sh_degree_ = 0;
-  size_t count_ = 0;
   // Gradients (factored SH), densification norms and visibility, N rows.
   DeviceBuffer<float> grad_means_, grad_log_scales_, grad_quats_, grad_opacity_,
       grad_color_, grad_view_dir_, grad_norm_, grad_norm_ndc_;
   DeviceBuffer<uint8_t> visible_;
-  // One float for a group with no values per Gaussian (sh_rest at degree
-  // 0): CudaAdam wants a non-null array it never reads.
-  DeviceBuffer<float> placeholder_;
   // Ground truth, render and dLoss/d(render) of the current view (HWC).
   DeviceBuffer<float> truth_, image_, grad_image_;
   int width_ = 0, height_ = 0;

@@ -356,45 +356,149 @@ TEST(EmbedderCuda, StepsMatchTheCpuEmbedder) {
   testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.0, 3);
 }
 
-// What `embed --device cuda` runs: the decoder (loaded by LoadBitDecoder from
-// the CPU decoder's weights file) on the GPU too. Its logits agree with the
-// CPU's to 1e-3 of their scale (tests/watermark/cuda_decoder_test.cc) and
-// the mean BCE moves by at most the largest logit change, so the BCE agrees
-// to 1e-3 of the largest |logit|; the image loss and Adam's steps as above.
-TEST(EmbedderCuda, StepsWithTheCudaDecoderMatchTheCpuEmbedder) {
-  WATERGS_REQUIRE_CUDA();
-  Scene s = MakeScene(2, 32, 24);
-  HiddenModel net(TinyDecoderConfig(16), false, 5);
-  MakeResponsive(&net, 1000.f, s.views);
+// The decoder as `embed --device cuda` loads it: LoadBitDecoder from the CPU
+// network's weights file, on the GPU.
+std::unique_ptr<BitDecoder> CudaDecoderOf(HiddenModel& net, int bits) {
   const std::string path =
       (std::filesystem::temp_directory_path() /
        ("watergs_embedder_decoder_" + std::to_string(::getpid()) + ".bin"))
           .string();
   SaveHiddenModel(path, net, false);
-  const std::unique_ptr<BitDecoder> gpu_decoder =
-      LoadBitDecoder(path, Device::kCuda, 16);
+  std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(path, Device::kCuda, bits);
   std::filesystem::remove(path);
-  Decoder cpu_decoder(&net);
-  double logit_scale = 0;
-  for (float logit : cpu_decoder.Logits(*s.views.Image(0))) {
-    logit_scale = std::max(logit_scale, double(std::abs(logit)));
+  return decoder;
+}
+
+// Largest |logit| the decoder reads from the scene's first view.
+double LogitScale(Decoder& decoder, const Scene& s) {
+  double scale = 0;
+  for (float logit : decoder.Logits(*s.views.Image(0))) {
+    scale = std::max(scale, double(std::abs(logit)));
   }
-  EmbedOptions o = DefaultEmbedOptions(3);
+  return scale;
+}
+
+// Options that densify within a few steps (every other iteration, a low
+// gradient threshold), with only the distortion layers that draw the same
+// samples on both backends (identity and crop).
+EmbedOptions DeviceParityOptions(int iterations) {
+  EmbedOptions o = DefaultEmbedOptions(iterations);
   o.crop_size = 16;
-  o.densify = false;
-  o.distortions = ParseDistortionList("gn:0.01");
+  o.distortions = ParseDistortionList("identity,crop:0.2");
+  o.density.densify_from_iter = 1;
+  o.density.densification_interval = 2;
+  o.density.densify_until_iter = iterations;
+  o.density.grad_threshold = 1e-7;
   o.seed = 4;
+  return o;
+}
+
+// What `embed --device cuda` runs: the CUDA rasterizer and decoder, so the
+// whole iteration is device-resident (distortion, render, losses, decoder,
+// scatter, density control, Adam). The decoder's logits agree with the
+// CPU's to 1e-3 of their scale (tests/watermark/cuda_decoder_test.cc) and
+// the mean BCE moves by at most the largest logit change, so the BCE agrees
+// to 1e-3 of the largest |logit|; the image loss and Adam's steps as above;
+// density control makes the same decisions, so the Gaussians and their
+// origins match.
+TEST(EmbedderCuda, DeviceResidentStepsMatchTheCpuEmbedder) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  const std::unique_ptr<BitDecoder> gpu_decoder = CudaDecoderOf(net, 16);
+  Decoder cpu_decoder(&net);
+  const double logit_scale = LogitScale(cpu_decoder, s);
+  const EmbedOptions o = DeviceParityOptions(6);
   const Bits message = RandomBits(16, 9);
   Embedder cpu(o, s.views, s.train, s.model, 3.0, &cpu_decoder, message,
                MakeCpuRasterizer());
   Embedder gpu(o, s.views, s.train, s.model, 3.0, gpu_decoder.get(), message,
                MakeRasterizer(Device::kCuda));
-  for (int i = 0; i < 3; ++i) {
+  ASSERT_TRUE(gpu.device_resident());
+  ASSERT_FALSE(cpu.device_resident());
+  bool densified = false;
+  for (int i = 0; i < 6; ++i) {
     const EmbedStepStats a = cpu.Step(), b = gpu.Step();
+    EXPECT_EQ(a.distortion, b.distortion);
     EXPECT_NEAR(a.bce, b.bce, 1e-3 * (1 + logit_scale));
     EXPECT_NEAR(a.image.total, b.image.total, 1e-5 * (1 + a.image.total));
+    ASSERT_EQ(a.num_gaussians, b.num_gaussians) << "step " << i;
+    densified |= a.num_gaussians != s.model.size();
   }
-  testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.0, 3);
+  EXPECT_TRUE(densified) << "the test should exercise density control";
+  EXPECT_EQ(cpu.origin(), gpu.origin());
+  testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.0, 6);
+}
+
+// On the device path the noise and dropout layers draw their own samples,
+// so they are checked by what must hold whatever the samples: a partial mask
+// keeps the frozen groups bit-identical (no density control then), the
+// trained ones move, and every parameter stays finite.
+TEST(EmbedderCuda, DeviceResidentNoiseAndDropoutKeepFrozenGroups) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  const std::unique_ptr<BitDecoder> decoder = CudaDecoderOf(net, 16);
+  EmbedOptions o = DefaultEmbedOptions(40);
+  o.crop_size = 0;
+  o.trainable = ParseParamMask("f_dc,f_rest");
+  o.distortions = ParseDistortionList("gn:0.05,dropout:0.3");
+  const Bits message = RandomBits(16, 9);
+  Embedder gpu(o, s.views, s.train, s.model, 3.0, decoder.get(), message,
+               MakeRasterizer(Device::kCuda));
+  ASSERT_TRUE(gpu.device_resident());
+  for (int i = 0; i < 40; ++i) {
+    const EmbedStepStats stats = gpu.Step();
+    ASSERT_TRUE(std::isfinite(stats.total));
+    ASSERT_EQ(stats.num_gaussians, s.model.size());
+  }
+  const GaussianModel& m = gpu.model();
+  EXPECT_EQ(m.means, s.model.means);
+  EXPECT_EQ(m.log_scales, s.model.log_scales);
+  EXPECT_EQ(m.quats, s.model.quats);
+  EXPECT_EQ(m.opacity_logits, s.model.opacity_logits);
+  EXPECT_NE(m.sh_dc, s.model.sh_dc);
+  for (float v : m.sh_dc) ASSERT_TRUE(std::isfinite(v));
+  for (float v : m.sh_rest) ASSERT_TRUE(std::isfinite(v));
+}
+
+// A device-resident run checkpointed half way (model, moments, density
+// statistics and RNG pulled from the GPU) and resumed by a new embedder
+// ends where the uninterrupted run ends (to float rounding: the backward
+// pass sums with atomics).
+TEST(EmbedderCuda, DeviceResidentRunResumesFromItsCheckpoint) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  const std::unique_ptr<BitDecoder> decoder = CudaDecoderOf(net, 16);
+  const EmbedOptions o = DeviceParityOptions(6);
+  const Bits message = RandomBits(16, 9);
+  const std::string path =
+      (std::filesystem::temp_directory_path() /
+       ("watergs_embed_resume_" + std::to_string(::getpid()) + ".ckpt"))
+          .string();
+  Embedder whole(o, s.views, s.train, s.model, 3.0, decoder.get(), message,
+                 MakeRasterizer(Device::kCuda));
+  for (int i = 0; i < 6; ++i) whole.Step();
+  {
+    Embedder first(o, s.views, s.train, s.model, 3.0, decoder.get(), message,
+                   MakeRasterizer(Device::kCuda));
+    for (int i = 0; i < 3; ++i) first.Step();
+    first.SaveCheckpoint(path);
+  }
+  Embedder second(o, s.views, s.train, s.model, 3.0, decoder.get(), message,
+                  MakeRasterizer(Device::kCuda));
+  second.Resume(path);
+  std::filesystem::remove(path);
+  ASSERT_TRUE(second.device_resident());
+  for (int i = 0; i < 3; ++i) second.Step();
+  EXPECT_EQ(second.iteration(), 6);
+  EXPECT_EQ(whole.origin(), second.origin());
+  testing::ExpectModelsAgree(whole.model(), second.model(), o.adam, 3.0, 6);
 }
 
 }  // namespace

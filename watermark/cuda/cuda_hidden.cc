@@ -268,6 +268,7 @@ CudaDecoder& CudaDecoder::operator=(CudaDecoder&& other) noexcept {
   cached_width_ = other.cached_width_;
   cached_height_ = other.cached_height_;
   has_forward_ = other.has_forward_ = false;
+  patch_forward_ = other.patch_forward_ = false;
   return *this;
 }
 
@@ -275,16 +276,18 @@ CudaDecoder::~CudaDecoder() = default;
 
 int CudaDecoder::NumBits() const { return network_->num_bits(); }
 
-void CudaDecoder::ForwardDevice(const float* image_hwc, int width, int height) {
+void CudaDecoder::ForwardDevice(const float* image_hwc, int width, int height,
+                                int pitch) {
   input_.Resize(1, 3, height, width);
   WATERGS_CUDA_CHECK(
-      nn_kernels::ImageToInput(image_hwc, input_.PlaneSize(), input_.ptr()));
+      nn_kernels::ImageToInput(image_hwc, width, height, pitch, input_.ptr()));
   const DeviceTensor& logits = network_->Forward(input_, false);
   logits.data.Download(&logits_);
 }
 
 void CudaDecoder::BackwardDevice(const std::vector<float>& dlogits,
-                                 float* dimage_hwc) {
+                                 float* dimage_hwc, int pitch,
+                                 bool accumulate) {
   if (int(dlogits.size()) != NumBits())
     Fail("decoder: " + std::to_string(dlogits.size()) +
          " logit gradients for a " + std::to_string(NumBits()) +
@@ -293,7 +296,7 @@ void CudaDecoder::BackwardDevice(const std::vector<float>& dlogits,
   dlogits_.data.Upload(dlogits);
   network_->Backward(dlogits_, &dinput_, false, false);
   WATERGS_CUDA_CHECK(nn_kernels::InputGradientToImage(
-      dinput_.ptr(), dinput_.PlaneSize(), dimage_hwc));
+      dinput_.ptr(), dinput_.w, dinput_.h, pitch, accumulate, dimage_hwc));
 }
 
 void CudaDecoder::ForwardIfNeeded(const ImageRGB& image) {
@@ -310,12 +313,12 @@ void CudaDecoder::ForwardIfNeeded(const ImageRGB& image) {
     return;
   // Invalid until the pass below completes: a failed pass must not leave
   // the old logits answering for the new image.
-  has_forward_ = false;
+  has_forward_ = patch_forward_ = false;
   cached_pixels_.assign(image.data.begin(), image.data.end());
   cached_width_ = image.width;
   cached_height_ = image.height;
   image_.Upload(image.data);
-  ForwardDevice(image_.data(), image.width, image.height);
+  ForwardDevice(image_.data(), image.width, image.height, image.width);
   has_forward_ = true;
 }
 
@@ -333,7 +336,7 @@ void CudaDecoder::InputGradient(const ImageRGB& image,
          "-bit decoder");
   ForwardIfNeeded(image);
   dimage_.Resize(image.data.size());
-  BackwardDevice(dlogits, dimage_.data());
+  BackwardDevice(dlogits, dimage_.data(), image.width, false);
   dimage_.Download(&dimage->data);
   dimage->width = image.width;
   dimage->height = image.height;
@@ -351,9 +354,10 @@ std::vector<float> CudaDecoder::LogitsDevice(const float* image_hwc, int width,
   if (width <= 0 || height <= 0)
     Fail("decoder: image of " + std::to_string(width) + "x" +
          std::to_string(height));
-  ForwardDevice(image_hwc, width, height);
-  // The activations are no longer those of the cached host image.
-  has_forward_ = false;
+  // The activations will no longer be those of the cached host image or
+  // of a patch.
+  has_forward_ = patch_forward_ = false;
+  ForwardDevice(image_hwc, width, height, width);
   return logits_;
 }
 
@@ -362,7 +366,47 @@ void CudaDecoder::InputGradientDevice(const float* image_hwc, int width,
                                       const std::vector<float>& dlogits,
                                       float* dimage_hwc) {
   LogitsDevice(image_hwc, width, height);
-  BackwardDevice(dlogits, dimage_hwc);
+  BackwardDevice(dlogits, dimage_hwc, width, false);
+}
+
+namespace {
+
+// Checks that `rect` lies in an image `pitch` pixels wide (its height is the
+// caller's to check) and returns the offset of its first value.
+size_t PatchOffset(int pitch, const PixelRect& rect) {
+  if (rect.width <= 0 || rect.height <= 0 || rect.x0 < 0 || rect.y0 < 0 ||
+      rect.x0 + rect.width > pitch) {
+    Fail("decoder: patch " + std::to_string(rect.width) + "x" +
+         std::to_string(rect.height) + " at (" + std::to_string(rect.x0) +
+         ", " + std::to_string(rect.y0) + ") outside an image " +
+         std::to_string(pitch) + " pixels wide");
+  }
+  return (size_t(rect.y0) * pitch + rect.x0) * 3;
+}
+
+}  // namespace
+
+std::vector<float> CudaDecoder::LogitsDevicePatch(const float* image_hwc,
+                                                  int pitch,
+                                                  const PixelRect& rect) {
+  const size_t offset = PatchOffset(pitch, rect);
+  has_forward_ = patch_forward_ = false;
+  ForwardDevice(image_hwc + offset, rect.width, rect.height, pitch);
+  patch_forward_ = true;
+  patch_ = rect;
+  return logits_;
+}
+
+void CudaDecoder::AddInputGradientDevicePatch(const std::vector<float>& dlogits,
+                                              float* dimage_hwc, int pitch,
+                                              const PixelRect& rect) {
+  if (!patch_forward_ || rect.x0 != patch_.x0 || rect.y0 != patch_.y0 ||
+      rect.width != patch_.width || rect.height != patch_.height) {
+    Fail(
+        "decoder: input gradient of a patch the last forward pass did not "
+        "decode");
+  }
+  BackwardDevice(dlogits, dimage_hwc + PatchOffset(pitch, rect), pitch, true);
 }
 
 }  // namespace watergs

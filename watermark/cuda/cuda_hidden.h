@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "gaussian/image.h"
+#include "gaussian/rasterizer.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/cuda/cuda_nn.h"
 #include "watermark/hidden_model.h"
@@ -143,12 +144,25 @@ class CudaDecoder : public BitDecoder {
   void InputGradientDevice(const float* image_hwc, int width, int height,
                            const std::vector<float>& dlogits,
                            float* dimage_hwc);
+  // The embedder's device path: the logits of the `rect` patch of a device
+  // HWC image whose rows are `pitch` pixels wide (the rect's height is the
+  // caller's to check), then, with no decoder call between, dLoss/dPatch
+  // added into the same rect of `dimage_hwc` (same layout): no crop copy,
+  // no separate gradient image.
+  std::vector<float> LogitsDevicePatch(const float* image_hwc, int pitch,
+                                       const PixelRect& rect);
+  void AddInputGradientDevicePatch(const std::vector<float>& dlogits,
+                                   float* dimage_hwc, int pitch,
+                                   const PixelRect& rect);
 
  private:
-  // Network input from a device HWC image, then the forward pass.
-  void ForwardDevice(const float* image_hwc, int width, int height);
-  // Backward to the network input, then to dimage_hwc.
-  void BackwardDevice(const std::vector<float>& dlogits, float* dimage_hwc);
+  // Network input from a width x height device HWC patch with rows `pitch`
+  // pixels apart, then the forward pass.
+  void ForwardDevice(const float* image_hwc, int width, int height, int pitch);
+  // Backward to the network input, then into dimage_hwc (same patch layout),
+  // overwriting or adding.
+  void BackwardDevice(const std::vector<float>& dlogits, float* dimage_hwc,
+                      int pitch, bool accumulate);
   // Runs the forward pass unless `image` is the cached input.
   void ForwardIfNeeded(const ImageRGB& image);
 
@@ -163,6 +177,9 @@ class CudaDecoder : public BitDecoder {
   // Size of the cached image; whether the activations are of it.
   int cached_width_ = 0, cached_height_ = 0;
   bool has_forward_ = false;
+  // Whether the activations are of a LogitsDevicePatch call, and its rect.
+  bool patch_forward_ = false;
+  PixelRect patch_;
 };
 
 }  // namespace watergs

@@ -229,21 +229,31 @@ __global__ void FillMessagePlanesKernel(const float* message, int n, int bits,
   }
 }
 
-// Over 3 * hw values, in NCHW order.
-__global__ void ImageToInputKernel(const float* hwc, size_t hw, float* nchw) {
+// Offset in a pitched HWC patch of NCHW plane position p (of width w).
+__device__ size_t PatchOffset(size_t p, int w, int pitch, size_t c) {
+  return ((p / w) * size_t(pitch) + p % w) * 3 + c;
+}
+
+// Over 3 * w * h values, in NCHW order.
+__global__ void ImageToInputKernel(const float* hwc, int w, int h, int pitch,
+                                   float* nchw) {
+  const size_t hw = size_t(w) * h;
   for (size_t i = blockIdx.x * size_t(blockDim.x) + threadIdx.x; i < 3 * hw;
        i += size_t(gridDim.x) * blockDim.x) {
-    const size_t c = i / hw, p = i % hw;
-    nchw[i] = 2.f * hwc[p * 3 + c] - 1.f;
+    nchw[i] = 2.f * hwc[PatchOffset(i % hw, w, pitch, i / hw)] - 1.f;
   }
 }
 
-__global__ void InputGradientToImageKernel(const float* dnchw, size_t hw,
+__global__ void InputGradientToImageKernel(const float* dnchw, int w, int h,
+                                           int pitch, bool accumulate,
                                            float* dhwc) {
+  const size_t hw = size_t(w) * h;
   for (size_t i = blockIdx.x * size_t(blockDim.x) + threadIdx.x; i < 3 * hw;
        i += size_t(gridDim.x) * blockDim.x) {
-    const size_t c = i / hw, p = i % hw;
-    dhwc[p * 3 + c] = 2.f * dnchw[i];
+    float* dst = dhwc + PatchOffset(i % hw, w, pitch, i / hw);
+    // The CPU forms the gradient image first, then adds it (embedder.cc).
+    const float g = 2.f * dnchw[i];
+    *dst = accumulate ? __fadd_rn(*dst, g) : g;
   }
 }
 
@@ -361,14 +371,23 @@ cudaError_t FillMessagePlanes(const float* message, int n, int bits, size_t hw,
   return cudaGetLastError();
 }
 
-cudaError_t ImageToInput(const float* hwc, size_t hw, float* nchw) {
-  if (hw > 0) ImageToInputKernel<<<GridFor(3 * hw), kThreads>>>(hwc, hw, nchw);
+cudaError_t ImageToInput(const float* hwc, int width, int height, int pitch,
+                         float* nchw) {
+  const size_t hw = size_t(width) * size_t(height);
+  if (hw > 0) {
+    ImageToInputKernel<<<GridFor(3 * hw), kThreads>>>(hwc, width, height, pitch,
+                                                      nchw);
+  }
   return cudaGetLastError();
 }
 
-cudaError_t InputGradientToImage(const float* dnchw, size_t hw, float* dhwc) {
-  if (hw > 0)
-    InputGradientToImageKernel<<<GridFor(3 * hw), kThreads>>>(dnchw, hw, dhwc);
+cudaError_t InputGradientToImage(const float* dnchw, int width, int height,
+                                 int pitch, bool accumulate, float* dhwc) {
+  const size_t hw = size_t(width) * size_t(height);
+  if (hw > 0) {
+    InputGradientToImageKernel<<<GridFor(3 * hw), kThreads>>>(
+        dnchw, width, height, pitch, accumulate, dhwc);
+  }
   return cudaGetLastError();
 }
 

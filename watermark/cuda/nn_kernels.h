@@ -86,10 +86,15 @@ cudaError_t CopyChannels(const float* src, int n, int src_channels,
 cudaError_t FillMessagePlanes(const float* message, int n, int bits, size_t hw,
                               float* dst, int dst_channels);
 
-// ImageRGB layout (HWC in [0,1]) -> network input [1,3,H,W] = 2 v - 1.
-cudaError_t ImageToInput(const float* hwc, size_t hw, float* nchw);
-// Gradient back: dhwc[p * 3 + c] = 2 dnchw[c * hw + p].
-cudaError_t InputGradientToImage(const float* dnchw, size_t hw, float* dhwc);
+// A width x height patch of an ImageRGB-layout image (HWC in [0,1], rows
+// `pitch` pixels apart; hwc points at the patch's first pixel) -> network
+// input [1,3,H,W] = 2 v - 1.
+cudaError_t ImageToInput(const float* hwc, int width, int height, int pitch,
+                         float* nchw);
+// Gradient back into the same patch layout: dhwc[y pitch + x][c] =
+// 2 dnchw[c][y][x], or += it when accumulate.
+cudaError_t InputGradientToImage(const float* dnchw, int width, int height,
+                                 int pitch, bool accumulate, float* dhwc);
 
 }  // namespace nn_kernels
 }  // namespace watergs

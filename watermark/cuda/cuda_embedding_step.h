@@ -1,0 +1,133 @@
+// One WATER-GS fine-tuning iteration (embedder.h) with everything per
+// Gaussian on the GPU: the model and its Adam moments (a CudaModelMirror of
+// the embedder's host copies), the 3D distortion layer and the gradient
+// scatter back through it, the render of the crop, the image loss, the
+// decoder's forward and input gradient on the render (in place, no crop
+// copy), the backward pass, Inria's density control and Adam. Per
+// iteration only the ground-truth crop goes up and the L logits and three
+// loss figures come down; the Gaussians' origin list comes down at a
+// densification. Embedder uses it when its rasterizer is a CudaRasterizer,
+// its decoder a CudaDecoder and its moments float32.
+//
+// Same results as the host step up to float rounding, except: the noise
+// and dropout layers draw their samples on the device (cuda_distortion.h:
+// same distributions, other samples and rng use), and under position noise
+// density control's screen radii are those of the noisy render (the host
+// step projects the undistorted model); crop and identity are exact.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "distortion/cuda/cuda_distortion.h"
+#include "distortion/distortion_layer.h"
+#include "gaussian/adam.h"
+#include "gaussian/camera.h"
+#include "gaussian/cuda/cuda_density.h"
+#include "gaussian/cuda/cuda_loss.h"
+#include "gaussian/cuda/cuda_model_mirror.h"
+#include "gaussian/cuda/cuda_rasterizer_device.h"
+#include "gaussian/density_strategy.h"
+#include "gaussian/image.h"
+#include "gaussian/loss.h"
+#include "gaussian/rasterizer.h"
+#include "watermark/cuda/cuda_hidden.h"
+
+namespace watergs {
+
+// What the forward half of one iteration renders and decodes.
+struct CudaEmbedView {
+  RenderCamera camera;
+  // options.rect is the rendered region (empty = the whole frame).
+  RenderOptions options;
+  // Ground truth of the rendered region (host, its size).
+  const ImageRGB* truth = nullptr;
+  // The decoded patch in rendered-region pixels; empty = all of it.
+  PixelRect decoder_crop;
+  // The sampled distortion layer (null or identity: the model itself).
+  const DistortionLayer* layer = nullptr;
+};
+
+// Figures of the forward half.
+struct CudaEmbedLoss {
+  LossTerms image;
+  double bce = 0;
+  int bit_errors = 0;
+  // Seconds of the distortion, the render, the image loss and the decoder.
+  double distortion_s = 0, render_s = 0, image_loss_s = 0, decoder_s = 0;
+};
+
+class CudaEmbeddingStep {
+ public:
+  // `rasterizer`, `decoder`, `host_model` and `host_adam` (the embedder's)
+  // must outlive this; targets holds the message's 0/1 bits.
+  CudaEmbeddingStep(CudaRasterizer* rasterizer, CudaDecoder* decoder,
+                    const AdamOptions& adam_options, double scene_extent,
+                    double beta, double gamma, std::vector<float> targets,
+                    GaussianModel* host_model, Adam* host_adam);
+  ~CudaEmbeddingStep();
+
+  // Inria's density control on the device, continuing from `state` (the
+  // host strategy's SaveState for the current model).
+  void TakeDensityControl(const DensityOptions& options, double scene_extent,
+                          const std::string& state);
+
+  // Distorts, renders, and evaluates (1 - beta) L1 + beta D-SSIM and the BCE
+  // of the decoded crop, keeping their image gradient on the device. Draws
+  // from rng as the host step does (see above for noise and dropout).
+  CudaEmbedLoss Forward(const CudaEmbedView& view, std::mt19937_64& rng);
+  // Backward of the last Forward, scattered through the distortion; then
+  // density control at 1-based `iteration` (if taken) and, unless it
+  // densified, Adam. The event's parent list is filled when it densified.
+  // `backward_s`, `density_s`, `adam_s` get the stages' seconds.
+  DensityEvent BackwardAndUpdate(int64_t iteration, double* backward_s,
+                                 double* density_s, double* adam_s);
+
+  // The mirror's contract (cuda_model_mirror.h), plus the density state.
+  void PullModel() { mirror_.PullModel(); }
+  void PullAdam() { mirror_.PullAdam(); }
+  void MarkHostEdited();
+  size_t NumGaussians() const { return mirror_.NumGaussians(); }
+  std::string SaveDensityState() const;
+  void LoadDensityState(const std::string& state);
+
+ private:
+  // Sizes and wires the N-row gradient arrays (dense SH).
+  CudaGradientArrays Gradients(size_t n, int rest_stride,
+                               DeviceBuffer<float> (&buffers)[8],
+                               DeviceBuffer<uint8_t>* visible);
+  // Adds the distorted render's gradients into the model's rows.
+  void ScatterToModel(size_t n_distorted);
+  // The device layer twin of a host layer (made on first use).
+  CudaDistortionLayer& DeviceLayer(const DistortionLayer& layer);
+
+  CudaRasterizer* rasterizer_;
+  CudaDecoder* decoder_;
+  CudaModelMirror mirror_;
+  CudaTrainingLoss loss_;
+  double gamma_;
+  std::vector<float> targets_;
+  std::map<const DistortionLayer*, std::unique_ptr<CudaDistortionLayer>>
+      layers_;
+  // The distorted model of this iteration and each row's source row.
+  DeviceGaussianArrays distorted_;
+  DeviceBuffer<uint32_t> source_;
+  bool distorted_this_step_ = false;
+  // Gradients of the model and of the distorted model: means, log-scales,
+  // quats, opacity, sh_dc, sh_rest, |dmean2d| px and NDC; visibility.
+  DeviceBuffer<float> grads_[8], distorted_grads_[8];
+  DeviceBuffer<uint8_t> visible_, distorted_visible_;
+  // Radii scattered to the model's rows (distorted renders).
+  DeviceBuffer<float> radii_;
+  // Ground truth, render and dLoss/d(render) of the rendered region (HWC).
+  DeviceBuffer<float> truth_, image_, grad_image_;
+  // The last Forward's pass (alive until BackwardAndUpdate).
+  std::unique_ptr<RenderContext> context_;
+  std::unique_ptr<CudaDensityControl> density_;
+};
+
+}  // namespace watergs
