@@ -224,19 +224,32 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   auto* cuda_decoder = dynamic_cast<CudaDecoder*>(decoder_);
   if (cuda_rasterizer && cuda_decoder && !options_.adam.compact_moments &&
       !options_.adam.half_moments) {
-    device_ = std::make_unique<CudaEmbeddingStep>(
-        cuda_rasterizer, cuda_decoder, options_.adam, scene_extent_,
-        options_.beta, options_.gamma, targets_, &model_, &adam_);
-    if (options_.densify) {
-      device_->TakeDensityControl(density_options_, scene_extent_,
-                                  strategy_->SaveState());
-      device_density_ = true;
-    }
+    UseDeviceStep([&](GaussianModel* host_model, Adam* host_adam) {
+      return std::make_unique<CudaEmbeddingStep>(
+          cuda_rasterizer, cuda_decoder, options_.adam, scene_extent_,
+          options_.beta, options_.gamma, targets_, host_model, host_adam);
+    });
   }
 #endif
 }
 
 Embedder::~Embedder() = default;
+
+void Embedder::UseDeviceStep(const DeviceEmbeddingStepFactory& make) {
+  SyncToHost();
+  if (device_density_) {
+    // The outgoing step's density state moves to the next owner.
+    strategy_->Init(model_);
+    strategy_->LoadState(device_->SaveDensityState());
+  }
+  device_ = make(&model_, &adam_);
+  device_density_ = false;
+  if (device_ && options_.densify) {
+    device_->TakeDensityControl(density_options_, scene_extent_,
+                                strategy_->SaveState());
+    device_density_ = true;
+  }
+}
 
 std::string Embedder::RunSignature() const {
   nlohmann::json j;
@@ -378,8 +391,7 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
 
 DensityEvent Embedder::DeviceIteration(int64_t it, const IterationPlan& plan,
                                        EmbedStepStats* stats) {
-#ifdef WATERGS_WITH_CUDA
-  CudaEmbedView view;
+  DeviceEmbedView view;
   view.camera = plan.camera;
   view.options = plan.render_options;
   const bool cropped = !plan.render_options.rect.empty();
@@ -387,7 +399,7 @@ DensityEvent Embedder::DeviceIteration(int64_t it, const IterationPlan& plan,
   view.truth = cropped ? &truth_crop_ : plan.truth.get();
   view.decoder_crop = plan.decoder_crop;
   view.layer = plan.layer;
-  const CudaEmbedLoss loss = device_->Forward(view, rng_);
+  const DeviceEmbedLoss loss = device_->Forward(view, rng_);
   stats->image = loss.image;
   stats->bce = loss.bce;
   stats->bit_errors = loss.bit_errors;
@@ -399,10 +411,6 @@ DensityEvent Embedder::DeviceIteration(int64_t it, const IterationPlan& plan,
   t.image_loss = loss.image_loss_s;
   t.decoder = loss.decoder_s;
   return device_->BackwardAndUpdate(it, &t.backward, &t.density, &t.adam);
-#else
-  (void)it, (void)plan, (void)stats;
-  Fail("embed: built without CUDA");
-#endif
 }
 
 void Embedder::SyncToHost() const {
@@ -420,14 +428,18 @@ const GaussianModel& Embedder::model() const {
 CheckResult Embedder::Check(const std::vector<size_t>& views) {
   CheckResult result;
   if (views.empty()) return result;
-  if (device_) device_->PullModel();
   RenderOptions render_options;
   render_options.background = options_.background;
   std::vector<double> mean_logits(message_.size(), 0.0);
   ImageRGB image;
   for (size_t view : views) {
-    rasterizer_->Forward(model_, views_.Camera(view), render_options, &image,
-                         nullptr);
+    // The device path renders its resident model (no model download).
+    if (device_) {
+      device_->Render(views_.Camera(view), render_options, &image);
+    } else {
+      rasterizer_->Forward(model_, views_.Camera(view), render_options, &image,
+                           nullptr);
+    }
     for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
     const std::vector<float> logits = decoder_->Logits(image);
     result.mean_ber += double(CountBitErrors(logits, message_)) /

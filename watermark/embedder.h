@@ -23,6 +23,7 @@
 #include "gaussian/trainer.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/decoder.h"
+#include "watermark/device_embedding_step.h"
 #include "watermark/message.h"
 
 namespace watergs {
@@ -116,8 +117,6 @@ struct CheckResult {
   double psnr = 0;
 };
 
-class CudaEmbeddingStep;
-
 class Embedder {
  public:
   // `views` (outliving the embedder) supplies cameras and images;
@@ -128,6 +127,9 @@ class Embedder {
            double scene_extent, BitDecoder* decoder, Bits message,
            std::unique_ptr<Rasterizer> rasterizer);
   ~Embedder();
+  // Runs the iterations on the step `make` returns from now on (tests: a
+  // host emulation of a device; the constructor picks the CUDA step).
+  void UseDeviceStep(const DeviceEmbeddingStepFactory& make);
 
   // One fine-tuning iteration. Throws Error on a non-finite loss.
   EmbedStepStats Step();
@@ -209,7 +211,7 @@ class Embedder {
   std::vector<float> radii_;
   // The device-resident step (null: iterations run on the host model), and
   // whether it took over density control.
-  std::unique_ptr<CudaEmbeddingStep> device_;
+  std::unique_ptr<DeviceEmbeddingStep> device_;
   bool device_density_ = false;
 };
 

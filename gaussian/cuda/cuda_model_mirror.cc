@@ -103,6 +103,10 @@ void CudaModelMirror::PullModel() {
 
 void CudaModelMirror::PullAdam() {
   if (!host_adam_stale_) return;
+  // The host Adam takes the device's Gaussian count (density control may
+  // have changed it) from the host model: sized by Init, then filled.
+  PullModel();
+  host_adam_->Init(*host_model_);
   for (ParamGroup group : kGroups) {
     host_adam_->state(group) = adam_.DownloadState(group);
   }

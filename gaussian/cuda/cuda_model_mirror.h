@@ -47,7 +47,8 @@ class CudaModelMirror {
                   GaussianModel* host_model, Adam* host_adam);
 
   // Device -> host copies of the model / the Adam state (moments, step
-  // counts, rejected count) when the host ones are behind.
+  // counts, rejected count; the host Adam is re-sized to the device's
+  // Gaussians, its masks cleared) when the host ones are behind.
   void PullModel();
   void PullAdam();
   // The host model / Adam were replaced or edited (after a Pull): the device

@@ -29,6 +29,7 @@
 #include <utility>
 #include <vector>
 
+#include "gaussian/cuda/device_buffer.h"
 #include "gaussian/error.h"
 #include "tests/common/cuda_test.h"
 #include "watermark/cuda/cuda_decoder_training.h"
@@ -208,6 +209,55 @@ TEST(CudaDecoderTest, MovedDecoderGivesTheSameGradients) {
     assigned = std::move(source);
   }
   EXPECT_EQ(assigned.InputGradient(image, dlogits).data, expected);
+}
+
+// The embedder's in-place patch path: the logits of a rect of a wider device
+// image equal those of the cropped image, and its input gradient is added
+// into exactly that rect of a gradient image (other pixels untouched); a
+// gradient for another patch, or a rect outside the image, is refused.
+TEST(CudaDecoderTest, PatchOfAWiderImageEqualsTheCroppedImage) {
+  WATERGS_REQUIRE_CUDA();
+  std::mt19937 rng(47);
+  HiddenModel model(TinyConfig(), false, 5);
+  RandomizeRunningStatistics(&model, &rng);
+  CudaDecoder gpu(model);
+  const ImageRGB image = TestImage(13, 10, &rng);
+  const PixelRect rect{3, 2, 7, 5};
+  ImageRGB cropped(rect.width, rect.height);
+  for (int y = 0; y < rect.height; ++y)
+    for (int x = 0; x < rect.width; ++x)
+      for (int c = 0; c < 3; ++c)
+        cropped.At(x, y)[c] = image.At(rect.x0 + x, rect.y0 + y)[c];
+  const std::vector<float> dlogits = RandomVector(8, &rng);
+  const std::vector<float> logits = gpu.Logits(cropped);
+  const ImageRGB dcropped = gpu.InputGradient(cropped, dlogits);
+
+  DeviceBuffer<float> image_gpu, dimage_gpu;
+  image_gpu.Upload(image.data);
+  const std::vector<float> base = RandomVector(image.data.size(), &rng);
+  dimage_gpu.Upload(base);
+  EXPECT_EQ(gpu.LogitsDevicePatch(image_gpu.data(), image.width, rect), logits);
+  gpu.AddInputGradientDevicePatch(dlogits, dimage_gpu.data(), image.width,
+                                  rect);
+  std::vector<float> dimage;
+  dimage_gpu.Download(&dimage);
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const size_t i = (size_t(y) * image.width + x) * 3 + c;
+        const bool inside = x >= rect.x0 && x < rect.x0 + rect.width &&
+                            y >= rect.y0 && y < rect.y0 + rect.height;
+        const float expected =
+            inside ? base[i] + dcropped.At(x - rect.x0, y - rect.y0)[c]
+                   : base[i];
+        ASSERT_EQ(dimage[i], expected) << x << "," << y << "," << c;
+      }
+  EXPECT_THROW(gpu.AddInputGradientDevicePatch(dlogits, dimage_gpu.data(),
+                                               image.width, {0, 0, 7, 5}),
+               Error);
+  EXPECT_THROW(
+      gpu.LogitsDevicePatch(image_gpu.data(), image.width, {8, 0, 7, 5}),
+      Error);
 }
 
 TEST(CudaDecoderTest, WrongLogitGradientCountIsRefused) {

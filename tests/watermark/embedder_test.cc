@@ -380,8 +380,9 @@ double LogitScale(Decoder& decoder, const Scene& s) {
 }
 
 // Options that densify within a few steps (every other iteration, a low
-// gradient threshold), with only the distortion layers that draw the same
-// samples on both backends (identity and crop).
+// gradient threshold) and reset opacity at 3, so that density control also
+// reads screen radii from 4 on, with only the distortion layers that draw
+// the same samples on both backends (identity and crop).
 EmbedOptions DeviceParityOptions(int iterations) {
   EmbedOptions o = DefaultEmbedOptions(iterations);
   o.crop_size = 16;
@@ -389,19 +390,51 @@ EmbedOptions DeviceParityOptions(int iterations) {
   o.density.densify_from_iter = 1;
   o.density.densification_interval = 2;
   o.density.densify_until_iter = iterations;
+  o.density.opacity_reset_interval = 3;
   o.density.grad_threshold = 1e-7;
   o.seed = 4;
   return o;
 }
 
+// Runs `o` for o.iterations steps on the CPU embedder and on one with
+// `gpu_decoder` and a `rasterizer` rasterizer, expecting the same steps (see
+// the test below) and the device-resident path exactly when both are CUDA.
+void ExpectDeviceResidentRunMatchesCpu(const EmbedOptions& o,
+                                       BitDecoder* gpu_decoder,
+                                       Decoder* cpu_decoder, const Scene& s,
+                                       Device rasterizer = Device::kCuda) {
+  const double logit_scale = LogitScale(*cpu_decoder, s);
+  const Bits message = RandomBits(16, 9);
+  Embedder cpu(o, s.views, s.train, s.model, 3.0, cpu_decoder, message,
+               MakeCpuRasterizer());
+  Embedder gpu(o, s.views, s.train, s.model, 3.0, gpu_decoder, message,
+               MakeRasterizer(rasterizer));
+  ASSERT_EQ(gpu.device_resident(), rasterizer == Device::kCuda);
+  bool densified = false, cropped = false;
+  for (int i = 0; i < o.iterations; ++i) {
+    const EmbedStepStats a = cpu.Step(), b = gpu.Step();
+    EXPECT_EQ(a.distortion, b.distortion);
+    EXPECT_NEAR(a.bce, b.bce, 1e-3 * (1 + logit_scale));
+    EXPECT_NEAR(a.image.total, b.image.total, 1e-5 * (1 + a.image.total));
+    ASSERT_EQ(a.num_gaussians, b.num_gaussians) << "step " << i;
+    densified |= a.num_gaussians != s.model.size();
+    cropped |= a.distortion.rfind("crop", 0) == 0;
+  }
+  EXPECT_TRUE(densified) << "the test should exercise density control";
+  EXPECT_TRUE(cropped) << "the test should exercise the scatter";
+  EXPECT_EQ(cpu.origin(), gpu.origin());
+  testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.0,
+                             int(o.iterations));
+}
+
 // What `embed --device cuda` runs: the CUDA rasterizer and decoder, so the
 // whole iteration is device-resident (distortion, render, losses, decoder,
-// scatter, density control, Adam). The decoder's logits agree with the
-// CPU's to 1e-3 of their scale (tests/watermark/cuda_decoder_test.cc) and
-// the mean BCE moves by at most the largest logit change, so the BCE agrees
-// to 1e-3 of the largest |logit|; the image loss and Adam's steps as above;
-// density control makes the same decisions, so the Gaussians and their
-// origins match.
+// scatter, density control with screen radii, Adam). The decoder's logits
+// agree with the CPU's to 1e-3 of their scale
+// (tests/watermark/cuda_decoder_test.cc) and the mean BCE moves by at most
+// the largest logit change, so the BCE agrees to 1e-3 of the largest
+// |logit|; the image loss and Adam's steps as above; density control makes
+// the same decisions, so the Gaussians and their origins match.
 TEST(EmbedderCuda, DeviceResidentStepsMatchTheCpuEmbedder) {
   WATERGS_REQUIRE_CUDA();
   Scene s = MakeScene(2, 32, 24);
@@ -409,27 +442,37 @@ TEST(EmbedderCuda, DeviceResidentStepsMatchTheCpuEmbedder) {
   MakeResponsive(&net, 1000.f, s.views);
   const std::unique_ptr<BitDecoder> gpu_decoder = CudaDecoderOf(net, 16);
   Decoder cpu_decoder(&net);
-  const double logit_scale = LogitScale(cpu_decoder, s);
-  const EmbedOptions o = DeviceParityOptions(6);
-  const Bits message = RandomBits(16, 9);
-  Embedder cpu(o, s.views, s.train, s.model, 3.0, &cpu_decoder, message,
-               MakeCpuRasterizer());
-  Embedder gpu(o, s.views, s.train, s.model, 3.0, gpu_decoder.get(), message,
-               MakeRasterizer(Device::kCuda));
-  ASSERT_TRUE(gpu.device_resident());
-  ASSERT_FALSE(cpu.device_resident());
-  bool densified = false;
-  for (int i = 0; i < 6; ++i) {
-    const EmbedStepStats a = cpu.Step(), b = gpu.Step();
-    EXPECT_EQ(a.distortion, b.distortion);
-    EXPECT_NEAR(a.bce, b.bce, 1e-3 * (1 + logit_scale));
-    EXPECT_NEAR(a.image.total, b.image.total, 1e-5 * (1 + a.image.total));
-    ASSERT_EQ(a.num_gaussians, b.num_gaussians) << "step " << i;
-    densified |= a.num_gaussians != s.model.size();
-  }
-  EXPECT_TRUE(densified) << "the test should exercise density control";
-  EXPECT_EQ(cpu.origin(), gpu.origin());
-  testing::ExpectModelsAgree(cpu.model(), gpu.model(), o.adam, 3.0, 6);
+  ExpectDeviceResidentRunMatchesCpu(DeviceParityOptions(8), gpu_decoder.get(),
+                                    &cpu_decoder, s);
+}
+
+// The same with whole-frame renders and the decoder reading a crop of them:
+// the decoder's forward and input gradient work in place on a patch of a
+// wider image (offsets, row pitch, accumulation into the image loss's
+// gradient).
+TEST(EmbedderCuda, DeviceResidentFullFrameStepsMatchTheCpuEmbedder) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene(2, 40, 28);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  const std::unique_ptr<BitDecoder> gpu_decoder = CudaDecoderOf(net, 16);
+  Decoder cpu_decoder(&net);
+  EmbedOptions o = DeviceParityOptions(8);
+  o.full_frame_image_loss = true;
+  ExpectDeviceResidentRunMatchesCpu(o, gpu_decoder.get(), &cpu_decoder, s);
+}
+
+// The CUDA decoder alone (behind its host interface) in the host
+// iteration, as with bfloat16 or 8-bit moments, which have no CUDA Adam.
+TEST(EmbedderCuda, HostIterationWithTheCudaDecoderMatchesTheCpu) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  const std::unique_ptr<BitDecoder> gpu_decoder = CudaDecoderOf(net, 16);
+  Decoder cpu_decoder(&net);
+  ExpectDeviceResidentRunMatchesCpu(DeviceParityOptions(8), gpu_decoder.get(),
+                                    &cpu_decoder, s, Device::kCpu);
 }
 
 // On the device path the noise and dropout layers draw their own samples,
@@ -475,7 +518,7 @@ TEST(EmbedderCuda, DeviceResidentRunResumesFromItsCheckpoint) {
   HiddenModel net(TinyDecoderConfig(16), false, 5);
   MakeResponsive(&net, 1000.f, s.views);
   const std::unique_ptr<BitDecoder> decoder = CudaDecoderOf(net, 16);
-  const EmbedOptions o = DeviceParityOptions(6);
+  const EmbedOptions o = DeviceParityOptions(8);
   const Bits message = RandomBits(16, 9);
   const std::string path =
       (std::filesystem::temp_directory_path() /
@@ -483,11 +526,11 @@ TEST(EmbedderCuda, DeviceResidentRunResumesFromItsCheckpoint) {
           .string();
   Embedder whole(o, s.views, s.train, s.model, 3.0, decoder.get(), message,
                  MakeRasterizer(Device::kCuda));
-  for (int i = 0; i < 6; ++i) whole.Step();
+  for (int i = 0; i < 8; ++i) whole.Step();
   {
     Embedder first(o, s.views, s.train, s.model, 3.0, decoder.get(), message,
                    MakeRasterizer(Device::kCuda));
-    for (int i = 0; i < 3; ++i) first.Step();
+    for (int i = 0; i < 4; ++i) first.Step();
     first.SaveCheckpoint(path);
   }
   Embedder second(o, s.views, s.train, s.model, 3.0, decoder.get(), message,
@@ -495,10 +538,10 @@ TEST(EmbedderCuda, DeviceResidentRunResumesFromItsCheckpoint) {
   second.Resume(path);
   std::filesystem::remove(path);
   ASSERT_TRUE(second.device_resident());
-  for (int i = 0; i < 3; ++i) second.Step();
-  EXPECT_EQ(second.iteration(), 6);
+  for (int i = 0; i < 4; ++i) second.Step();
+  EXPECT_EQ(second.iteration(), 8);
   EXPECT_EQ(whole.origin(), second.origin());
-  testing::ExpectModelsAgree(whole.model(), second.model(), o.adam, 3.0, 6);
+  testing::ExpectModelsAgree(whole.model(), second.model(), o.adam, 3.0, 8);
 }
 
 }  // namespace

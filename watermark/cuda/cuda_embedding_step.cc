@@ -80,10 +80,10 @@ CudaDistortionLayer& CudaEmbeddingStep::DeviceLayer(
   return *twin;
 }
 
-CudaEmbedLoss CudaEmbeddingStep::Forward(const CudaEmbedView& view,
-                                         std::mt19937_64& rng) {
+DeviceEmbedLoss CudaEmbeddingStep::Forward(const DeviceEmbedView& view,
+                                           std::mt19937_64& rng) {
   mirror_.PushIfStale();
-  CudaEmbedLoss out;
+  DeviceEmbedLoss out;
   Clock::time_point t = Clock::now();
   distorted_this_step_ = view.layer && !view.layer->IsIdentity();
   if (distorted_this_step_) {
@@ -128,6 +128,19 @@ CudaEmbedLoss CudaEmbeddingStep::Forward(const CudaEmbedView& view,
                                         crop);
   out.decoder_s = StageSeconds(&t);
   return out;
+}
+
+void CudaEmbeddingStep::Render(const RenderCamera& camera,
+                               const RenderOptions& options, ImageRGB* image) {
+  mirror_.PushIfStale();
+  const PixelRect rect = ResolveRenderRect(camera, options);
+  check_image_.Resize(3 * size_t(rect.width) * size_t(rect.height));
+  std::unique_ptr<RenderContext> context;
+  rasterizer_->ForwardDevice(mirror_.model().Arrays(), camera, options,
+                             check_image_.data(), &context);
+  image->width = rect.width;
+  image->height = rect.height;
+  check_image_.Download(&image->data);
 }
 
 CudaGradientArrays CudaEmbeddingStep::Gradients(

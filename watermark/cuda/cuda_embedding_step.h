@@ -36,32 +36,11 @@
 #include "gaussian/loss.h"
 #include "gaussian/rasterizer.h"
 #include "watermark/cuda/cuda_hidden.h"
+#include "watermark/device_embedding_step.h"
 
 namespace watergs {
 
-// What the forward half of one iteration renders and decodes.
-struct CudaEmbedView {
-  RenderCamera camera;
-  // options.rect is the rendered region (empty = the whole frame).
-  RenderOptions options;
-  // Ground truth of the rendered region (host, its size).
-  const ImageRGB* truth = nullptr;
-  // The decoded patch in rendered-region pixels; empty = all of it.
-  PixelRect decoder_crop;
-  // The sampled distortion layer (null or identity: the model itself).
-  const DistortionLayer* layer = nullptr;
-};
-
-// Figures of the forward half.
-struct CudaEmbedLoss {
-  LossTerms image;
-  double bce = 0;
-  int bit_errors = 0;
-  // Seconds of the distortion, the render, the image loss and the decoder.
-  double distortion_s = 0, render_s = 0, image_loss_s = 0, decoder_s = 0;
-};
-
-class CudaEmbeddingStep {
+class CudaEmbeddingStep : public DeviceEmbeddingStep {
  public:
   // `rasterizer`, `decoder`, `host_model` and `host_adam` (the embedder's)
   // must outlive this; targets holds the message's 0/1 bits.
@@ -69,31 +48,24 @@ class CudaEmbeddingStep {
                     const AdamOptions& adam_options, double scene_extent,
                     double beta, double gamma, std::vector<float> targets,
                     GaussianModel* host_model, Adam* host_adam);
-  ~CudaEmbeddingStep();
+  ~CudaEmbeddingStep() override;
 
-  // Inria's density control on the device, continuing from `state` (the
-  // host strategy's SaveState for the current model).
+  // DeviceEmbeddingStep. Forward draws from rng as the host step does
+  // (see above for noise and dropout).
   void TakeDensityControl(const DensityOptions& options, double scene_extent,
-                          const std::string& state);
-
-  // Distorts, renders, and evaluates (1 - beta) L1 + beta D-SSIM and the BCE
-  // of the decoded crop, keeping their image gradient on the device. Draws
-  // from rng as the host step does (see above for noise and dropout).
-  CudaEmbedLoss Forward(const CudaEmbedView& view, std::mt19937_64& rng);
-  // Backward of the last Forward, scattered through the distortion; then
-  // density control at 1-based `iteration` (if taken) and, unless it
-  // densified, Adam. The event's parent list is filled when it densified.
-  // `backward_s`, `density_s`, `adam_s` get the stages' seconds.
+                          const std::string& state) override;
+  DeviceEmbedLoss Forward(const DeviceEmbedView& view,
+                          std::mt19937_64& rng) override;
   DensityEvent BackwardAndUpdate(int64_t iteration, double* backward_s,
-                                 double* density_s, double* adam_s);
-
-  // The mirror's contract (cuda_model_mirror.h), plus the density state.
-  void PullModel() { mirror_.PullModel(); }
-  void PullAdam() { mirror_.PullAdam(); }
-  void MarkHostEdited();
-  size_t NumGaussians() const { return mirror_.NumGaussians(); }
-  std::string SaveDensityState() const;
-  void LoadDensityState(const std::string& state);
+                                 double* density_s, double* adam_s) override;
+  void Render(const RenderCamera& camera, const RenderOptions& options,
+              ImageRGB* image) override;
+  void PullModel() override { mirror_.PullModel(); }
+  void PullAdam() override { mirror_.PullAdam(); }
+  void MarkHostEdited() override;
+  size_t NumGaussians() const override { return mirror_.NumGaussians(); }
+  std::string SaveDensityState() const override;
+  void LoadDensityState(const std::string& state) override;
 
  private:
   // Sizes and wires the N-row gradient arrays (dense SH).
@@ -123,8 +95,9 @@ class CudaEmbeddingStep {
   DeviceBuffer<uint8_t> visible_, distorted_visible_;
   // Radii scattered to the model's rows (distorted renders).
   DeviceBuffer<float> radii_;
-  // Ground truth, render and dLoss/d(render) of the rendered region (HWC).
-  DeviceBuffer<float> truth_, image_, grad_image_;
+  // Ground truth, render and dLoss/d(render) of the rendered region (HWC);
+  // Render's image.
+  DeviceBuffer<float> truth_, image_, grad_image_, check_image_;
   // The last Forward's pass (alive until BackwardAndUpdate).
   std::unique_ptr<RenderContext> context_;
   std::unique_ptr<CudaDensityControl> density_;
