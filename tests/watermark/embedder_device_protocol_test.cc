@@ -19,7 +19,7 @@
 #include "gaussian/checkpoint.h"
 #include "gaussian/cpu_rasterizer.h"
 #include "gaussian/projection.h"
-#include "tests/common/look_at.h"
+#include "tests/common/embed_scene.h"
 #include "watermark/device_embedding_step.h"
 #include "watermark/embedder.h"
 #include "watermark/hidden_model.h"
@@ -170,61 +170,22 @@ class EmulatedEmbeddingStep : public DeviceEmbeddingStep {
   Transfers* transfers_;
 };
 
-GaussianModel Ball(int n) {
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> u(-1, 1);
-  GaussianModel m;
-  m.sh_degree = 1;
-  m.Resize(n);
-  for (int i = 0; i < n; ++i) {
-    for (int k = 0; k < 3; ++k) {
-      m.means[3 * i + k] = 0.8f * u(rng);
-      m.log_scales[3 * i + k] = std::log(0.12f) + 0.3f * u(rng);
-      m.sh_dc[3 * i + k] = u(rng);
-    }
-    for (int k = 0; k < m.sh_rest_stride(); ++k) {
-      m.sh_rest[i * m.sh_rest_stride() + k] = 0.1f * u(rng);
-    }
-    m.quats[4 * i] = 1;
-    m.quats[4 * i + 1] = 0.3f * u(rng);
-    m.opacity_logits[i] = 1.0f + u(rng);
-  }
-  return m;
-}
-
-struct Setup {
-  InMemoryViews views;
-  std::vector<size_t> train;
-  GaussianModel model;
+struct Setup : testing::Scene {
   std::unique_ptr<HiddenModel> net;
   std::unique_ptr<Decoder> decoder;
   Bits message;
   EmbedOptions options;
 };
 
-// 3 views of a ball rendered from itself, a random 8-bit decoder, every
+// 3 views of a ball rendered from itself, a tiny random decoder, every
 // layer kind, densification every 3 iterations from 2 with a low threshold
 // (so it clones, splits and prunes), opacity resets every 7 (screen radii
 // read from 8 on), checks every 4 iterations.
 std::unique_ptr<Setup> MakeSetup(int iterations) {
   auto s = std::make_unique<Setup>();
-  s->model = Ball(60);
-  auto rasterizer = MakeCpuRasterizer();
-  for (int v = 0; v < 3; ++v) {
-    const double a = 2 * M_PI * v / 3;
-    const RenderCamera cam = LookAtOrigin(
-        Eigen::Vector3d(3 * std::cos(a), 3 * std::sin(a), 0.5), 32, 24);
-    ImageRGB image;
-    rasterizer->Forward(s->model, cam, RenderOptions{}, &image, nullptr);
-    s->views.Add("v" + std::to_string(v), cam, image);
-    s->train.push_back(v);
-  }
-  HiddenConfig config;
-  config.num_bits = 8;
-  config.channels = 6;
-  config.encoder_blocks = 1;
-  config.decoder_blocks = 1;
-  s->net = std::make_unique<HiddenModel>(config, false, 3);
+  static_cast<testing::Scene&>(*s) = testing::MakeScene(3, 32, 24);
+  s->net =
+      std::make_unique<HiddenModel>(testing::TinyDecoderConfig(8), false, 3);
   s->decoder = std::make_unique<Decoder>(s->net.get());
   s->message = {1, 0, 1, 1, 0, 0, 1, 0};
   EmbedOptions& o = s->options;

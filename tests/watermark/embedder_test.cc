@@ -17,65 +17,17 @@
 #include "gaussian/error.h"
 #include "tests/common/backend_parity.h"
 #include "tests/common/cuda_test.h"
+#include "tests/common/embed_scene.h"
 #include "tests/common/look_at.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {
 namespace {
 
-GaussianModel RandomBall(int n, uint32_t seed, float scale) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1, 1);
-  GaussianModel m;
-  m.sh_degree = 1;
-  m.Resize(n);
-  for (int i = 0; i < n; ++i) {
-    for (int a = 0; a < 3; ++a) {
-      m.means[3 * i + a] = 0.8f * u(rng);
-      m.log_scales[3 * i + a] = std::log(scale * (1.2f + 0.5f * u(rng)));
-      m.sh_dc[3 * i + a] = 1.2f * u(rng);
-    }
-    for (int k = 0; k < m.sh_rest_stride(); ++k) {
-      m.sh_rest[m.sh_rest_stride() * i + k] = 0.1f * u(rng);
-    }
-    m.quats[4 * i] = 1;
-    m.quats[4 * i + 1] = 0.3f * u(rng);
-    m.opacity_logits[i] = 1.0f + u(rng);
-  }
-  return m;
-}
-
-// A scene rendered from its own model (the raw model is already converged).
-struct Scene {
-  InMemoryViews views;
-  std::vector<size_t> train;
-  GaussianModel model;
-};
-
-Scene MakeScene(int num_views, int w, int h) {
-  Scene s;
-  s.model = RandomBall(80, 1, 0.12f);
-  auto rasterizer = MakeCpuRasterizer();
-  for (int v = 0; v < num_views; ++v) {
-    const double a = 2 * M_PI * v / num_views;
-    const RenderCamera cam = LookAtOrigin(
-        Eigen::Vector3d(3 * std::cos(a), 3 * std::sin(a), 0.5), w, h);
-    ImageRGB image;
-    rasterizer->Forward(s.model, cam, RenderOptions{}, &image, nullptr);
-    s.views.Add("view" + std::to_string(v), cam, image);
-    s.train.push_back(v);
-  }
-  return s;
-}
-
-HiddenConfig TinyDecoderConfig(int bits) {
-  HiddenConfig config;
-  config.num_bits = bits;
-  config.channels = 6;
-  config.encoder_blocks = 1;
-  config.decoder_blocks = 2;
-  return config;
-}
+using testing::MakeScene;
+using testing::RandomBall;
+using testing::Scene;
+using testing::TinyDecoderConfig;
 
 // A freshly initialised decoder reads nearly the same logits from every
 // image (its pooled features barely vary), unlike a trained one. Scaling the
@@ -396,18 +348,23 @@ EmbedOptions DeviceParityOptions(int iterations) {
   return o;
 }
 
-// Runs `o` for o.iterations steps on the CPU embedder and on one with
-// `gpu_decoder` and a `rasterizer` rasterizer, expecting the same steps (see
-// the test below) and the device-resident path exactly when both are CUDA.
-void ExpectDeviceResidentRunMatchesCpu(const EmbedOptions& o,
-                                       BitDecoder* gpu_decoder,
-                                       Decoder* cpu_decoder, const Scene& s,
+// Runs `o` for o.iterations steps on a width x height scene with a
+// responsive 16-bit decoder, on the CPU embedder and on one with the CUDA
+// decoder and a `rasterizer` rasterizer, expecting the same steps (see the
+// test below) and the device-resident path exactly when both are CUDA.
+void ExpectDeviceResidentRunMatchesCpu(const EmbedOptions& o, int width,
+                                       int height,
                                        Device rasterizer = Device::kCuda) {
-  const double logit_scale = LogitScale(*cpu_decoder, s);
+  Scene s = MakeScene(2, width, height);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  const std::unique_ptr<BitDecoder> gpu_decoder = CudaDecoderOf(net, 16);
+  Decoder cpu_decoder(&net);
+  const double logit_scale = LogitScale(cpu_decoder, s);
   const Bits message = RandomBits(16, 9);
-  Embedder cpu(o, s.views, s.train, s.model, 3.0, cpu_decoder, message,
+  Embedder cpu(o, s.views, s.train, s.model, 3.0, &cpu_decoder, message,
                MakeCpuRasterizer());
-  Embedder gpu(o, s.views, s.train, s.model, 3.0, gpu_decoder, message,
+  Embedder gpu(o, s.views, s.train, s.model, 3.0, gpu_decoder.get(), message,
                MakeRasterizer(rasterizer));
   ASSERT_EQ(gpu.device_resident(), rasterizer == Device::kCuda);
   bool densified = false, cropped = false;
@@ -437,13 +394,7 @@ void ExpectDeviceResidentRunMatchesCpu(const EmbedOptions& o,
 // the same decisions, so the Gaussians and their origins match.
 TEST(EmbedderCuda, DeviceResidentStepsMatchTheCpuEmbedder) {
   WATERGS_REQUIRE_CUDA();
-  Scene s = MakeScene(2, 32, 24);
-  HiddenModel net(TinyDecoderConfig(16), false, 5);
-  MakeResponsive(&net, 1000.f, s.views);
-  const std::unique_ptr<BitDecoder> gpu_decoder = CudaDecoderOf(net, 16);
-  Decoder cpu_decoder(&net);
-  ExpectDeviceResidentRunMatchesCpu(DeviceParityOptions(8), gpu_decoder.get(),
-                                    &cpu_decoder, s);
+  ExpectDeviceResidentRunMatchesCpu(DeviceParityOptions(8), 32, 24);
 }
 
 // The same with whole-frame renders and the decoder reading a crop of them:
@@ -452,27 +403,17 @@ TEST(EmbedderCuda, DeviceResidentStepsMatchTheCpuEmbedder) {
 // gradient).
 TEST(EmbedderCuda, DeviceResidentFullFrameStepsMatchTheCpuEmbedder) {
   WATERGS_REQUIRE_CUDA();
-  Scene s = MakeScene(2, 40, 28);
-  HiddenModel net(TinyDecoderConfig(16), false, 5);
-  MakeResponsive(&net, 1000.f, s.views);
-  const std::unique_ptr<BitDecoder> gpu_decoder = CudaDecoderOf(net, 16);
-  Decoder cpu_decoder(&net);
   EmbedOptions o = DeviceParityOptions(8);
   o.full_frame_image_loss = true;
-  ExpectDeviceResidentRunMatchesCpu(o, gpu_decoder.get(), &cpu_decoder, s);
+  ExpectDeviceResidentRunMatchesCpu(o, 40, 28);
 }
 
 // The CUDA decoder alone (behind its host interface) in the host
 // iteration, as with bfloat16 or 8-bit moments, which have no CUDA Adam.
 TEST(EmbedderCuda, HostIterationWithTheCudaDecoderMatchesTheCpu) {
   WATERGS_REQUIRE_CUDA();
-  Scene s = MakeScene(2, 32, 24);
-  HiddenModel net(TinyDecoderConfig(16), false, 5);
-  MakeResponsive(&net, 1000.f, s.views);
-  const std::unique_ptr<BitDecoder> gpu_decoder = CudaDecoderOf(net, 16);
-  Decoder cpu_decoder(&net);
-  ExpectDeviceResidentRunMatchesCpu(DeviceParityOptions(8), gpu_decoder.get(),
-                                    &cpu_decoder, s, Device::kCpu);
+  ExpectDeviceResidentRunMatchesCpu(DeviceParityOptions(8), 32, 24,
+                                    Device::kCpu);
 }
 
 // On the device path the noise and dropout layers draw their own samples,
