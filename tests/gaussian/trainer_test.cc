@@ -165,8 +165,18 @@ class EmulatedDeviceStep : public DeviceTrainingStep {
     if (host_model_stale_) *host_model_ = model_, ++pulls;
     host_model_stale_ = false;
   }
+  // As CudaModelMirror::PullAdam: the host Adam is sized from the pulled
+  // host model, then takes the moments, step counts and rejected count.
   void PullAdam() override {
-    if (host_adam_stale_) *host_adam_ = adam_, ++pulls;
+    if (!host_adam_stale_) return;
+    PullModel();
+    host_adam_->Init(*host_model_);
+    for (int g = 0; g < kNumParamGroups; ++g) {
+      const ParamGroup group = static_cast<ParamGroup>(g);
+      host_adam_->state(group) = adam_.state(group);
+    }
+    host_adam_->set_rejected_total(adam_.rejected_total());
+    ++pulls;
     host_adam_stale_ = false;
   }
   void MarkHostModelEdited() override {
@@ -569,6 +579,24 @@ TEST(TrainerDeviceProtocol, EmulatedDeviceResumeEqualsTheHostRun) {
   on_host.Resume(dir + "/run.ckpt");
   on_host.Run();
   ExpectSameState(host, on_host);
+}
+
+// The host edits the model and the moments after the device densified
+// (the Gaussian count changed on the device): they go back up and the run
+// continues as the host run does.
+TEST(TrainerDeviceProtocol, HostEditsAfterADeviceDensificationContinue) {
+  Scene s = MakeScene();
+  const TrainerOptions o = SmallRun(20);
+  Trainer host(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  host.Run();
+  Trainer device(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  device.UseDeviceStep(MakeEmulatedStep);
+  for (int i = 0; i < 14; ++i) device.Step();
+  ASSERT_NE(device.model().size(), s.init.size());
+  device.adam();           // pulled and marked edited
+  device.mutable_model();  // the same for the model
+  device.Run();
+  ExpectSameState(host, device);
 }
 
 // Training steps with the CUDA rasterizer equal the CPU trainer's: the same
