@@ -10,6 +10,7 @@
 
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
+#include "plugin/image_file.h"
 
 namespace watergs {
 
@@ -72,20 +73,7 @@ void WriteCamerasJson(const std::string& path, const TrainingViews& source,
 }
 
 void WritePng(const std::string& path, const ImageRGB& image) {
-  cv::Mat bgr(image.height, image.width, CV_8UC3);
-  for (int y = 0; y < image.height; ++y) {
-    for (int x = 0; x < image.width; ++x) {
-      const float* p = image.At(x, y);
-      cv::Vec3b& out = bgr.at<cv::Vec3b>(y, x);
-      for (int c = 0; c < 3; ++c) {
-        out[2 - c] = static_cast<uint8_t>(
-            std::lround(std::clamp(p[c], 0.f, 1.f) * 255.f));
-      }
-    }
-  }
-  std::vector<uchar> bytes;
-  if (!cv::imencode(".png", bgr, bytes)) FailAt(path, "PNG encoding failed");
-  AtomicWriteFile(path, std::string(bytes.begin(), bytes.end()));
+  WriteImageFile(path, image, ".png");
 }
 
 }  // namespace watergs

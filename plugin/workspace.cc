@@ -14,6 +14,7 @@
 #include <unordered_map>
 
 #include "gaussian/error.h"
+#include "plugin/image_file.h"
 #include "plugin/image_header.h"
 #include "plugin/reconstruction_io.h"
 #include "plugin/undistortion.h"
@@ -134,33 +135,8 @@ std::string RunColmapUndistorter(const WorkspaceOptions& options,
   return sparse;
 }
 
-// Decodes an image as float RGB in [0, 1] (8- or 16-bit files), ignoring
-// EXIF orientation like COLMAP does.
-cv::Mat DecodeImage(const std::string& path) {
-  const cv::Mat raw = cv::imread(path, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH |
-                                           cv::IMREAD_IGNORE_ORIENTATION);
-  if (raw.empty()) FailAt(path, "cannot read or decode image");
-  const double scale = raw.depth() == CV_16U  ? 1.0 / 65535
-                       : raw.depth() == CV_8U ? 1.0 / 255
-                                              : 1.0;
-  cv::Mat rgb;
-  raw.convertTo(rgb, CV_32FC3, scale);
-  cv::cvtColor(rgb, rgb, cv::COLOR_BGR2RGB);
-  return rgb;
-}
-
 std::string SizeText(int width, int height) {
   return std::to_string(width) + "x" + std::to_string(height);
-}
-
-ImageRGB ToImageRGB(const cv::Mat& rgb) {
-  ImageRGB image(rgb.cols, rgb.rows);
-  for (int row = 0; row < rgb.rows; ++row) {
-    const float* source = rgb.ptr<float>(row);
-    std::copy(source, source + 3 * rgb.cols, image.At(0, row));
-  }
-  for (float& value : image.data) value = std::clamp(value, 0.f, 1.f);
-  return image;
 }
 
 }  // namespace
@@ -347,7 +323,7 @@ ImageRGB Workspace::LoadView(size_t view) const {
       (fs::path(from_downscaled ? downscaled_folder : options_.image_path) /
        image.name)
           .string();
-  cv::Mat rgb = DecodeImage(path);
+  cv::Mat rgb = DecodeImageFile(path);
   const long expected_width =
       from_downscaled ? std::lround(camera.width / double(options_.downscale))
                       : long(camera.width);
