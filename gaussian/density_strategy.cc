@@ -87,6 +87,23 @@ void ReadVector(std::istream& in, std::vector<T>* v) {
   if (!in) Fail("density state: truncated");
 }
 
+}  // namespace
+
+InriaDensitySchedule::InriaDensitySchedule(const DensityOptions& o,
+                                           int64_t iteration) {
+  accumulates = iteration < o.densify_until_iter;
+  if (!accumulates) return;
+  densifies = iteration > o.densify_from_iter && o.densification_interval > 0 &&
+              iteration % o.densification_interval == 0;
+  size_limits = iteration > o.opacity_reset_interval;
+  resets_opacity = (o.opacity_reset_interval > 0 &&
+                    iteration % o.opacity_reset_interval == 0) ||
+                   (o.white_background && iteration == o.densify_from_iter);
+  wants_radii = o.max_screen_size > 0 && size_limits;
+}
+
+namespace {
+
 class InriaDensityStrategy : public DensityStrategy {
  public:
   InriaDensityStrategy(const DensityOptions& options, double scene_extent)
@@ -95,43 +112,30 @@ class InriaDensityStrategy : public DensityStrategy {
   void Init(const GaussianModel& model) override { ResetStats(model.size()); }
 
   bool WantsRadii(int64_t iteration) const override {
-    return options_.max_screen_size > 0 &&
-           iteration > options_.opacity_reset_interval &&
-           iteration < options_.densify_until_iter;
+    return InriaDensitySchedule(options_, iteration).wants_radii;
   }
 
   bool ReadsGradients(int64_t iteration) const override {
-    return iteration < options_.densify_until_iter;
+    return InriaDensitySchedule(options_, iteration).accumulates;
   }
 
   // Exactly the iterations where PostBackward densifies or resets.
   bool MayChangeModel(int64_t iteration) const override {
-    if (iteration >= options_.densify_until_iter) return false;
-    const bool densify = iteration > options_.densify_from_iter &&
-                         options_.densification_interval > 0 &&
-                         iteration % options_.densification_interval == 0;
-    const bool reset =
-        (options_.opacity_reset_interval > 0 &&
-         iteration % options_.opacity_reset_interval == 0) ||
-        (options_.white_background && iteration == options_.densify_from_iter);
-    return densify || reset;
+    return InriaDensitySchedule(options_, iteration).MayChangeModel();
   }
 
   DensityEvent PostBackward(int64_t iteration, const GaussianGradients& grads,
                             const std::vector<float>* radii,
                             GaussianModel* model, Adam* adam) override {
     DensityEvent event;
-    if (iteration >= options_.densify_until_iter) return event;
+    const InriaDensitySchedule schedule(options_, iteration);
+    if (!schedule.accumulates) return event;
     if (grad_accum_.size() != model->size()) ResetStats(model->size());
     Accumulate(grads, radii);
-    if (iteration > options_.densify_from_iter &&
-        iteration % options_.densification_interval == 0) {
-      const bool size_limits = iteration > options_.opacity_reset_interval;
-      DensifyAndPrune(size_limits, model, adam, &event);
+    if (schedule.densifies) {
+      DensifyAndPrune(schedule.size_limits, model, adam, &event);
     }
-    if (iteration % options_.opacity_reset_interval == 0 ||
-        (options_.white_background &&
-         iteration == options_.densify_from_iter)) {
+    if (schedule.resets_opacity) {
       ResetOpacity(model, adam);
       event.opacity_reset = true;
     }

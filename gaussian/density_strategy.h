@@ -45,6 +45,24 @@ struct DensityOptions {
   uint64_t seed = 0;
 };
 
+// What Inria's adaptive density control does after the backward pass of
+// 1-based `iteration` (shared by the CPU strategy and the CUDA one, so the
+// two schedules cannot drift apart; zero intervals disable their step).
+struct InriaDensitySchedule {
+  InriaDensitySchedule(const DensityOptions& options, int64_t iteration);
+  // Statistics accumulate (iteration < densify_until_iter).
+  bool accumulates = false;
+  // Clone / split / prune, with the screen and world size limits once the
+  // first opacity reset is past.
+  bool densifies = false, size_limits = false;
+  // Opacities reset to reset_opacity.
+  bool resets_opacity = false;
+  // Screen radii are read (max_screen_size pruning can use them).
+  bool wants_radii = false;
+  // The model or Adam state may change.
+  bool MayChangeModel() const { return densifies || resets_opacity; }
+};
+
 // What one PostBackward call did.
 struct DensityEvent {
   // Gaussians were added or removed (the model and Adam changed size).

@@ -262,15 +262,24 @@ template double L1Interleaved<float>(const float*, const float*, size_t,
 template double L1Interleaved<double>(const double*, const double*, size_t,
                                       double*);
 
+void CheckImageSize(int width, int height, const ImageRGB& image) {
+  if (image.width != width || image.height != height ||
+      image.data.size() != 3 * size_t(width) * size_t(height)) {
+    Fail("loss: image sizes differ (" + std::to_string(width) + "x" +
+         std::to_string(height) + " vs " + std::to_string(image.width) + "x" +
+         std::to_string(image.height) + ")");
+  }
+}
+
 namespace {
 
 void CheckSameSize(const ImageRGB& a, const ImageRGB& b) {
-  if (a.width != b.width || a.height != b.height ||
-      a.data.size() != b.data.size()) {
-    Fail("loss: image sizes differ (" + std::to_string(a.width) + "x" +
-         std::to_string(a.height) + " vs " + std::to_string(b.width) + "x" +
-         std::to_string(b.height) + ")");
+  if (a.data.size() != 3 * size_t(a.width) * size_t(a.height)) {
+    Fail("loss: image of " + std::to_string(a.width) + "x" +
+         std::to_string(a.height) + " with " + std::to_string(a.data.size()) +
+         " values");
   }
+  CheckImageSize(a.width, a.height, b);
 }
 
 void PrepareGrad(const ImageRGB& like, ImageRGB* grad) {

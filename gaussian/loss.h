@@ -37,6 +37,10 @@ double Ssim(const ImageRGB& a, const ImageRGB& b, ImageRGB* grad_a = nullptr);
 // Mean |a - b| over pixels and channels.
 double L1(const ImageRGB& a, const ImageRGB& b, ImageRGB* grad_a = nullptr);
 
+// Error ("loss: image sizes differ ...", as the losses say it) unless
+// `image` is width x height with 3 values per pixel.
+void CheckImageSize(int width, int height, const ImageRGB& image);
+
 // PSNR in dB of `rendered` (clamped to [0, 1] first, as Inria evaluates)
 // against `truth`: 20 log10(1 / sqrt(MSE)); +inf for identical images.
 double Psnr(const ImageRGB& rendered, const ImageRGB& truth);

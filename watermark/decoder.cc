@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "gaussian/error.h"
+#include "watermark/network_image.h"
 
 namespace watergs {
 
@@ -34,11 +35,7 @@ void Decoder::ForwardIfNeeded(const ImageRGB& image) {
                   count * sizeof(float)) == 0)
     return;
   cached_pixels_.assign(image.data.begin(), image.data.end());
-  input_.Resize(1, 3, image.height, image.width);
-  const size_t hw = input_.PlaneSize();
-  for (size_t p = 0; p < hw; ++p)
-    for (int c = 0; c < 3; ++c)
-      input_.data[c * hw + p] = 2.f * image.data[p * 3 + c] - 1.f;
+  ImageToTensor(image, false, &input_);
   const Tensor& logits = model_->decoder->Forward(input_, false);
   logits_.assign(logits.data.begin(), logits.data.end());
   has_forward_ = true;

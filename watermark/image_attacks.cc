@@ -10,6 +10,7 @@
 #include "gaussian/error.h"
 #include "gaussian/text_util.h"
 #include "watermark/image_noise.h"
+#include "watermark/network_image.h"
 
 namespace watergs {
 namespace {
@@ -25,31 +26,15 @@ double ParseValue(const std::string& text, const std::string& value) {
 
 ImageRGB Jpeg(int quality, const ImageRGB& image) {
   // The decoder-training JPEG layer works on [-1, 1] NCHW tensors.
-  Tensor tensor(1, 3, image.height, image.width);
-  for (int y = 0; y < image.height; ++y) {
-    for (int x = 0; x < image.width; ++x) {
-      for (int c = 0; c < 3; ++c) {
-        tensor.Plane(0, c)[size_t(y) * image.width + x] =
-            2.f * std::clamp(image.At(x, y)[c], 0.f, 1.f) - 1.f;
-      }
-    }
-  }
+  Tensor tensor;
+  ImageToTensor(image, true, &tensor);
   NoiseStrengths strengths;
   strengths.jpeg_quality = quality;
   ImageNoise noise(strengths);
   Tensor compressed;
   std::mt19937 unused_rng(0);
   noise.Forward(NoiseKind::kJpeg, tensor, tensor, &compressed, &unused_rng);
-  ImageRGB out(image.width, image.height);
-  for (int y = 0; y < image.height; ++y) {
-    for (int x = 0; x < image.width; ++x) {
-      for (int c = 0; c < 3; ++c) {
-        const float v = compressed.Plane(0, c)[size_t(y) * image.width + x];
-        out.At(x, y)[c] = std::clamp(0.5f * (v + 1.f), 0.f, 1.f);
-      }
-    }
-  }
-  return out;
+  return TensorToImage(compressed);
 }
 
 ImageRGB Resize(double factor, const ImageRGB& image) {

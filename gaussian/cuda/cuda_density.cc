@@ -80,25 +80,15 @@ CudaDensityControl::~CudaDensityControl() { cudaFree(cub_scratch_); }
 void CudaDensityControl::Init(size_t n) { ResetStats(n); }
 
 bool CudaDensityControl::WantsRadii(int64_t iteration) const {
-  return options_.max_screen_size > 0 &&
-         iteration > options_.opacity_reset_interval &&
-         iteration < options_.densify_until_iter;
+  return InriaDensitySchedule(options_, iteration).wants_radii;
 }
 
 bool CudaDensityControl::ReadsGradients(int64_t iteration) const {
-  return iteration < options_.densify_until_iter;
+  return InriaDensitySchedule(options_, iteration).accumulates;
 }
 
 bool CudaDensityControl::MayChangeModel(int64_t iteration) const {
-  if (iteration >= options_.densify_until_iter) return false;
-  const bool densify = iteration > options_.densify_from_iter &&
-                       options_.densification_interval > 0 &&
-                       iteration % options_.densification_interval == 0;
-  const bool reset =
-      (options_.opacity_reset_interval > 0 &&
-       iteration % options_.opacity_reset_interval == 0) ||
-      (options_.white_background && iteration == options_.densify_from_iter);
-  return densify || reset;
+  return InriaDensitySchedule(options_, iteration).MayChangeModel();
 }
 
 DensityEvent CudaDensityControl::PostBackward(int64_t iteration,
@@ -107,7 +97,8 @@ DensityEvent CudaDensityControl::PostBackward(int64_t iteration,
                                               const CudaDensityModel& model,
                                               CudaAdam* adam) {
   DensityEvent event;
-  if (iteration >= options_.densify_until_iter) return event;
+  const InriaDensitySchedule schedule(options_, iteration);
+  if (!schedule.accumulates) return event;
   const size_t n = ModelCount(model);
   if (grad_accum_.size() != n) ResetStats(n);
   if (n > 0 && (!grads.visible || !grads.mean2d_grad_norm_ndc)) {
@@ -116,15 +107,10 @@ DensityEvent CudaDensityControl::PostBackward(int64_t iteration,
   WATERGS_CUDA_CHECK(cuda_density::LaunchAccumulate(
       grads.visible, grads.mean2d_grad_norm_ndc, radii, n, grad_accum_.data(),
       denom_.data(), max_radii_.data()));
-  if (iteration > options_.densify_from_iter &&
-      options_.densification_interval > 0 &&
-      iteration % options_.densification_interval == 0) {
-    const bool size_limits = iteration > options_.opacity_reset_interval;
-    DensifyAndPrune(size_limits, model, adam, &event);
+  if (schedule.densifies) {
+    DensifyAndPrune(schedule.size_limits, model, adam, &event);
   }
-  if ((options_.opacity_reset_interval > 0 &&
-       iteration % options_.opacity_reset_interval == 0) ||
-      (options_.white_background && iteration == options_.densify_from_iter)) {
+  if (schedule.resets_opacity) {
     ResetOpacity(model, adam);
     event.opacity_reset = true;
   }

@@ -62,13 +62,7 @@ void CudaTrainingStep::Forward(const RenderCamera& camera,
   const PixelRect rect = ResolveRenderRect(camera, options);
   const size_t values =
       3 * static_cast<size_t>(rect.width) * static_cast<size_t>(rect.height);
-  // TrainingLoss::Evaluate's check and message.
-  if (truth.width != rect.width || truth.height != rect.height ||
-      truth.data.size() != values) {
-    Fail("loss: image sizes differ (" + std::to_string(rect.width) + "x" +
-         std::to_string(rect.height) + " vs " + std::to_string(truth.width) +
-         "x" + std::to_string(truth.height) + ")");
-  }
+  CheckImageSize(rect.width, rect.height, truth);
   truth_.Upload(truth.data);
   image_.Resize(values);
   grad_image_.Resize(values);

@@ -38,6 +38,7 @@
 #ifdef WATERGS_WITH_CUDA
 #include "gaussian/cuda/cuda_adam.h"
 #include "gaussian/cuda/cuda_density.h"
+#include "gaussian/cuda/cuda_model_mirror.h"
 #include "gaussian/cuda/device_buffer.h"
 #endif
 
@@ -172,32 +173,12 @@ void RandomMoments(const GaussianModel& model, uint32_t seed, Adam* adam) {
 }
 
 // The model's arrays on the device.
-struct DeviceModel {
-  DeviceBuffer<float> means, log_scales, quats, opacity_logits, sh_dc, sh_rest;
-  int sh_degree = 0;
-
-  explicit DeviceModel(const GaussianModel& model)
-      : sh_degree(model.sh_degree) {
-    means.Upload(model.means);
-    log_scales.Upload(model.log_scales);
-    quats.Upload(model.quats);
-    opacity_logits.Upload(model.opacity_logits);
-    sh_dc.Upload(model.sh_dc);
-    sh_rest.Upload(model.sh_rest);
-  }
-  CudaDensityModel Ref() {
-    return {&means, &log_scales, &quats,   &opacity_logits,
-            &sh_dc, &sh_rest,    sh_degree};
-  }
-  GaussianModel Download() const {
+struct DeviceModel : DeviceGaussianArrays {
+  explicit DeviceModel(const GaussianModel& model) { Upload(model); }
+  CudaDensityModel Ref() { return DensityModel(); }
+  GaussianModel Host() const {
     GaussianModel model;
-    model.sh_degree = sh_degree;
-    means.Download(&model.means);
-    log_scales.Download(&model.log_scales);
-    quats.Download(&model.quats);
-    opacity_logits.Download(&model.opacity_logits);
-    sh_dc.Download(&model.sh_dc);
-    sh_rest.Download(&model.sh_rest);
+    Download(&model);
     return model;
   }
 };
@@ -326,7 +307,7 @@ void RunParity(const GaussianModel& start, const DensityOptions& options,
       split |= a.split > 0;
       pruned |= a.pruned > 0;
     }
-    ExpectModelsMatch(cpu_model, gpu_model.Download(), sample_scale, where);
+    ExpectModelsMatch(cpu_model, gpu_model.Host(), sample_scale, where);
     ExpectMomentsMatch(cpu_adam, gpu_adam, where);
     ASSERT_EQ(cpu->SaveState(), gpu.SaveState()) << where;
   }
@@ -455,7 +436,7 @@ TEST(CudaDensityTest, HugeModelIndexMath) {
   gpu.DownloadParent(&parent);
   EXPECT_EQ(parent, (std::vector<int64_t>{int64_t(rows[0]), int64_t(rows[1]),
                                           int64_t(rows[2])}));
-  const GaussianModel out = model.Download();
+  const GaussianModel out = model.Host();
   ASSERT_EQ(out.size(), 3u);
   for (size_t j = 0; j < 3; ++j) {
     EXPECT_EQ(out.opacity_logits[j], 1.f);

@@ -94,12 +94,7 @@ DeviceEmbedLoss CudaEmbeddingStep::Forward(const DeviceEmbedView& view,
   const PixelRect rect = ResolveRenderRect(view.camera, view.options);
   const ImageRGB& truth = *view.truth;
   const size_t values = 3 * size_t(rect.width) * size_t(rect.height);
-  if (truth.width != rect.width || truth.height != rect.height ||
-      truth.data.size() != values) {
-    Fail("loss: image sizes differ (" + std::to_string(rect.width) + "x" +
-         std::to_string(rect.height) + " vs " + std::to_string(truth.width) +
-         "x" + std::to_string(truth.height) + ")");
-  }
+  CheckImageSize(rect.width, rect.height, truth);
   const PixelRect crop = view.decoder_crop.empty()
                              ? PixelRect{0, 0, rect.width, rect.height}
                              : view.decoder_crop;
