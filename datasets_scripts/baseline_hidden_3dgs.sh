@@ -44,10 +44,8 @@ done
 [[ -n "$model" && -n "$out" ]] || { usage >&2; exit 2; }
 mkdir -p "$out"
 
-run() {
-  echo "$*" >> "$out/commands.txt"
-  "$@"
-}
+source "$(dirname "${BASH_SOURCE[0]}")/lib_baseline.sh"
+run() { baseline_run "$out" "$@"; }
 
 : > "$out/commands.txt"
 run "$binary" encode_images --image_path "$workspace/images" --output_path "$out/images" \

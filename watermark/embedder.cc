@@ -272,14 +272,19 @@ size_t Embedder::NextView() {
   return train_views_[rng_() % train_views_.size()];
 }
 
-PixelRect Embedder::SampleRect(int width, int height) {
-  PixelRect rect{0, 0, width, height};
-  if (options_.crop_size <= 0) return rect;
-  rect.width = std::min(options_.crop_size, width);
-  rect.height = std::min(options_.crop_size, height);
-  rect.x0 = static_cast<int>(rng_() % (width - rect.width + 1));
-  rect.y0 = static_cast<int>(rng_() % (height - rect.height + 1));
+PixelRect RandomCrop(int crop_size, int width, int height,
+                     std::mt19937_64* rng) {
+  PixelRect rect;
+  rect.width = std::min(crop_size, width);
+  rect.height = std::min(crop_size, height);
+  rect.x0 = static_cast<int>((*rng)() % (width - rect.width + 1));
+  rect.y0 = static_cast<int>((*rng)() % (height - rect.height + 1));
   return rect;
+}
+
+PixelRect Embedder::SampleRect(int width, int height) {
+  if (options_.crop_size <= 0) return PixelRect{0, 0, width, height};
+  return RandomCrop(options_.crop_size, width, height, &rng_);
 }
 
 EmbedStepStats Embedder::Step() {

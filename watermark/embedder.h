@@ -215,6 +215,11 @@ class Embedder {
   bool device_density_ = false;
 };
 
+// A crop_size x crop_size square (clamped to the frame) at a uniformly
+// random position in a width x height frame.
+PixelRect RandomCrop(int crop_size, int width, int height,
+                     std::mt19937_64* rng);
+
 // Copies rect of `image` into `out` (resized).
 void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out);
 

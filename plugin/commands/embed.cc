@@ -18,6 +18,7 @@
 #include "gaussian/ply_io.h"
 #include "gaussian/progress.h"
 #include "plugin/command.h"
+#include "plugin/embed_inputs.h"
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
@@ -64,14 +65,6 @@ void Validate(const EmbedArgs& a) {
   }
   if (a.densify != "on" && a.densify != "off") Fail("--densify: on or off");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
-}
-
-// `count` views spread evenly over `views`.
-std::vector<size_t> SpreadViews(const std::vector<size_t>& views, int count) {
-  std::vector<size_t> out;
-  const size_t n = std::min<size_t>(count, views.size());
-  for (size_t k = 0; k < n; ++k) out.push_back(views[k * views.size() / n]);
-  return out;
 }
 
 // Seconds of one forward + backward pass of the rasterizer at `rect`
@@ -176,15 +169,15 @@ int RunEmbed(int argc, char** argv) {
   options.checkpoint_every = a.checkpoint_every;
   options.show_progress = true;
 
-  PlyData ply = ReadPly(a.input_path);
-  const std::unique_ptr<BitDecoder> decoder =
-      LoadBitDecoder(a.decoder_path, parser.device());
-  Bits message = ParseMessage(a.message, decoder->NumBits());
-  const Workspace workspace = Workspace::Open(a.workspace);
-  const WorkspaceViews views(workspace);
-  const std::vector<size_t> train_views = workspace.TrainViews(a.eval);
+  EmbedInputs in = LoadEmbedInputs(a.input_path, a.decoder_path, a.message,
+                                   a.workspace, parser.device(), a.eval);
+  PlyData& ply = in.ply;
+  const BitDecoder* decoder = in.decoder.get();
+  const Bits& message = in.message;
+  const WorkspaceViews& views = *in.views;
+  const std::vector<size_t>& train_views = in.train_views;
   options.check_views = SpreadViews(train_views, a.check_views);
-  const double extent = workspace.SceneExtent();
+  const double extent = in.workspace->SceneExtent();
   const RenderCamera first = views.Camera(train_views.front());
   std::printf(
       "embed: %zu Gaussians, %zu views %dx%d, %d-bit message %s, "
@@ -195,7 +188,7 @@ int RunEmbed(int argc, char** argv) {
 
   const GaussianModel raw = ply.model;
   Embedder embedder(options, views, train_views, std::move(ply.model), extent,
-                    decoder.get(), message, MakeRasterizer(parser.device()));
+                    in.decoder.get(), message, MakeRasterizer(parser.device()));
   if (a.resume) {
     embedder.Resume(checkpoint_path);
     std::printf("embed: resumed at iteration %lld\n",
@@ -213,18 +206,10 @@ int RunEmbed(int argc, char** argv) {
   WritePly(a.output_path, embedder.model(), ply.layout);
 
   // Fidelity: watermarked vs raw renders on the check views.
-  double psnr_vs_raw = 0;
-  ImageRGB raw_image, wm_image;
-  RenderOptions render_options;
-  render_options.background = options.background;
-  for (size_t v : options.check_views) {
-    embedder.rasterizer().Forward(raw, views.Camera(v), render_options,
-                                  &raw_image, nullptr);
-    embedder.rasterizer().Forward(embedder.model(), views.Camera(v),
-                                  render_options, &wm_image, nullptr);
-    for (float& x : raw_image.data) x = std::clamp(x, 0.f, 1.f);
-    psnr_vs_raw += Psnr(wm_image, raw_image) / options.check_views.size();
-  }
+  const double psnr_vs_raw =
+      MeasureFidelity(embedder.rasterizer(), raw, embedder.model(), views,
+                      options.check_views, options.background)
+          .psnr_vs_raw;
   std::printf("embed: %lld iterations in %s%s, %zu Gaussians\n",
               static_cast<long long>(embedder.iteration()),
               FormatDuration(seconds).c_str(),

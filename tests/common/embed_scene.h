@@ -1,8 +1,10 @@
 // Test helper shared by the embedding tests (embedder_test.cc,
-// embedder_device_protocol_test.cc): a tiny scene of a random ball seen by
-// a ring of views whose ground truth is the ball's own render, and a tiny
-// decoder configuration.
+// embedder_device_protocol_test.cc, concat_encoder_test.cc): a tiny scene of a
+// random ball seen by a ring of views whose ground truth is the ball's own
+// render, a tiny decoder configuration made responsive, and random messages.
 #pragma once
+
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -15,7 +17,9 @@
 #include "gaussian/gaussian_model.h"
 #include "gaussian/trainer.h"
 #include "tests/common/look_at.h"
+#include "watermark/decoder.h"
 #include "watermark/hidden_net.h"
+#include "watermark/message.h"
 
 namespace watergs::testing {
 
@@ -71,6 +75,38 @@ inline HiddenConfig TinyDecoderConfig(int bits) {
   config.encoder_blocks = 1;
   config.decoder_blocks = 2;
   return config;
+}
+
+// A freshly initialised decoder reads nearly the same logits from every
+// image (its pooled features barely vary), unlike a trained one. Scaling the
+// final linear layer by `gain` and centring its bias on the scene's renders
+// gives the random decoder a trained one's sensitivity.
+inline void MakeResponsive(HiddenModel* net, float gain,
+                           const TrainingViews& views) {
+  Parameter *weight = nullptr, *bias = nullptr;
+  for (Parameter* p : net->DecoderParameters()) {
+    if (p->name == "decoder.linear.weight") weight = p;
+    if (p->name == "decoder.linear.bias") bias = p;
+  }
+  ASSERT_TRUE(weight && bias);
+  for (float& w : weight->value) w *= gain;
+  for (float& b : bias->value) b *= gain;
+  Decoder decoder(net);
+  std::vector<double> mean(bias->value.size(), 0);
+  for (size_t v = 0; v < views.NumViews(); ++v) {
+    const std::vector<float> logits = decoder.Logits(*views.Image(v));
+    for (size_t i = 0; i < mean.size(); ++i) {
+      mean[i] += logits[i] / views.NumViews();
+    }
+  }
+  for (size_t i = 0; i < mean.size(); ++i) bias->value[i] -= mean[i];
+}
+
+inline Bits RandomBits(int n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  Bits bits(n);
+  for (auto& b : bits) b = rng() & 1;
+  return bits;
 }
 
 }  // namespace watergs::testing

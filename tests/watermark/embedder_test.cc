@@ -24,41 +24,12 @@
 namespace watergs {
 namespace {
 
+using testing::MakeResponsive;
 using testing::MakeScene;
 using testing::RandomBall;
+using testing::RandomBits;
 using testing::Scene;
 using testing::TinyDecoderConfig;
-
-// A freshly initialised decoder reads nearly the same logits from every
-// image (its pooled features barely vary), unlike a trained one. Scaling the
-// final linear layer by `gain` and centring its bias on the scene's renders
-// gives the random decoder a trained one's sensitivity.
-void MakeResponsive(HiddenModel* net, float gain, const TrainingViews& views) {
-  Parameter *weight = nullptr, *bias = nullptr;
-  for (Parameter* p : net->DecoderParameters()) {
-    if (p->name == "decoder.linear.weight") weight = p;
-    if (p->name == "decoder.linear.bias") bias = p;
-  }
-  ASSERT_TRUE(weight && bias);
-  for (float& w : weight->value) w *= gain;
-  for (float& b : bias->value) b *= gain;
-  Decoder decoder(net);
-  std::vector<double> mean(bias->value.size(), 0);
-  for (size_t v = 0; v < views.NumViews(); ++v) {
-    const std::vector<float> logits = decoder.Logits(*views.Image(v));
-    for (size_t i = 0; i < mean.size(); ++i) {
-      mean[i] += logits[i] / views.NumViews();
-    }
-  }
-  for (size_t i = 0; i < mean.size(); ++i) bias->value[i] -= mean[i];
-}
-
-Bits RandomBits(int n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  Bits bits(n);
-  for (auto& b : bits) b = rng() & 1;
-  return bits;
-}
 
 TEST(ParamMask, ParsesGroupsAndRejectsUnknownNames) {
   const auto all = ParseParamMask("ALL");

@@ -1,0 +1,53 @@
+// Inputs and fidelity figures shared by the embedding commands.
+#include "plugin/embed_inputs.h"
+
+#include <algorithm>
+
+#include "gaussian/loss.h"
+
+namespace watergs {
+
+EmbedInputs LoadEmbedInputs(const std::string& input_path,
+                            const std::string& decoder_path,
+                            const std::string& message,
+                            const WorkspaceOptions& workspace, Device device,
+                            bool eval) {
+  EmbedInputs in;
+  in.ply = ReadPly(input_path);
+  in.decoder = LoadBitDecoder(decoder_path, device);
+  in.message = ParseMessage(message, in.decoder->NumBits());
+  in.workspace = std::make_unique<Workspace>(Workspace::Open(workspace));
+  in.views = std::make_unique<WorkspaceViews>(*in.workspace);
+  in.train_views = in.workspace->TrainViews(eval);
+  return in;
+}
+
+std::vector<size_t> SpreadViews(const std::vector<size_t>& views, int count) {
+  std::vector<size_t> out;
+  const size_t n = std::min<size_t>(count, views.size());
+  for (size_t k = 0; k < n; ++k) out.push_back(views[k * views.size() / n]);
+  return out;
+}
+
+Fidelity MeasureFidelity(Rasterizer& rasterizer, const GaussianModel& raw,
+                         const GaussianModel& marked,
+                         const TrainingViews& views,
+                         const std::vector<size_t>& view_ids,
+                         const std::array<float, 3>& background) {
+  Fidelity f;
+  if (view_ids.empty()) return f;
+  ImageRGB raw_image, marked_image;
+  RenderOptions options;
+  options.background = background;
+  for (size_t v : view_ids) {
+    rasterizer.Forward(raw, views.Camera(v), options, &raw_image, nullptr);
+    rasterizer.Forward(marked, views.Camera(v), options, &marked_image,
+                       nullptr);
+    for (float& x : raw_image.data) x = std::clamp(x, 0.f, 1.f);
+    f.psnr_vs_raw += Psnr(marked_image, raw_image) / view_ids.size();
+    f.psnr_vs_truth += Psnr(marked_image, *views.Image(v)) / view_ids.size();
+  }
+  return f;
+}
+
+}  // namespace watergs
