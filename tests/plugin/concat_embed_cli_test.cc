@@ -1,0 +1,94 @@
+// CLI test of `watergs concat_embed` (the CONCAT + 3DGS baseline) on a small
+// synthetic workspace with a tiny random decoder: the output keeps the
+// input's PLY layout and every attribute but the chosen SH group, and bad
+// input gives one-line errors naming what is wrong.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <string>
+
+#include "gaussian/ply_io.h"
+#include "synthetic_model.h"
+#include "tests/plugin/rendered_workspace.h"
+#include "watermark/hidden_model.h"
+
+namespace watergs {
+namespace {
+
+using testing::RunCommand;
+using testing::TempDir;
+using testing::WatergsBin;
+
+// A one-line error naming `what`, non-zero exit.
+void ExpectOneLineError(const testing::CommandResult& run,
+                        const std::string& what) {
+  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find(what), std::string::npos) << run.output;
+  EXPECT_LE(std::count(run.output.begin(), run.output.end(), '\n'), 1)
+      << run.output;
+}
+
+TEST(ConcatEmbedCli, KeepsTheLayoutAndFrozenAttributesAndRefusesBadInput) {
+  TempDir dir("concat_embed_cli");
+  testing::SyntheticModelOptions options;
+  options.num_images = 6;
+  options.num_points = 150;
+  options.width = 48;
+  options.height = 36;
+  GaussianModel truth;
+  const std::string ws =
+      testing::MakeRenderedWorkspace(dir / "ws", options, &truth);
+  // Input in a non-default layout: ASCII with non-zero normals.
+  PlyLayout layout = InriaPlyLayout(1, truth.size());
+  layout.format = PlyFormat::kAscii;
+  for (size_t k = 0; k < layout.extra_values.size(); ++k) {
+    layout.extra_values[k] = 0.25 * double(k % 7);
+  }
+  const std::string raw = dir / "raw.ply";
+  WritePly(raw, truth, layout);
+  HiddenConfig config;
+  config.num_bits = 16;
+  config.channels = 6;
+  config.encoder_blocks = 1;
+  config.decoder_blocks = 2;
+  HiddenModel net(config, false, 3);
+  const std::string decoder = dir / "decoder.bin";
+  SaveHiddenModel(decoder, net, false);
+
+  const std::string wm = dir / "wm.ply";
+  const std::string base = WatergsBin() + " concat_embed --input_path " + raw +
+                           " --workspace_path " + ws + " --decoder " + decoder +
+                           " --message hex:a5c3 --num_threads 2";
+  const auto run = RunCommand(base + " --output_path " + wm +
+                              " --iterations 8 --crop_size 24 --hidden 8 "
+                              "--attributes f_dc --check_views 2");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("check views (2): BER"), std::string::npos)
+      << run.output;
+  const PlyData in = ReadPly(raw), out = ReadPly(wm);
+  EXPECT_EQ(out.layout.format, PlyFormat::kAscii);
+  EXPECT_EQ(out.layout.extra_values, in.layout.extra_values);
+  EXPECT_NE(out.model.sh_dc, in.model.sh_dc);
+  EXPECT_EQ(out.model.sh_rest, in.model.sh_rest);
+  EXPECT_EQ(out.model.means, in.model.means);
+  EXPECT_EQ(out.model.log_scales, in.model.log_scales);
+  EXPECT_EQ(out.model.quats, in.model.quats);
+  EXPECT_EQ(out.model.opacity_logits, in.model.opacity_logits);
+
+  const std::string bad_out = dir / "bad.ply";
+  ExpectOneLineError(
+      RunCommand(base + " --output_path " + bad_out + " --attributes xyz"),
+      "--attributes");
+  const std::string missing = dir / "missing.bin";
+  ExpectOneLineError(
+      RunCommand(WatergsBin() + " concat_embed --input_path " + raw +
+                 " --workspace_path " + ws + " --decoder " + missing +
+                 " --message hex:a5c3 --output_path " + bad_out),
+      missing);
+  ExpectOneLineError(RunCommand(base + " --output_path " + raw), "differ");
+  EXPECT_FALSE(std::filesystem::exists(bad_out));
+}
+
+}  // namespace
+}  // namespace watergs
