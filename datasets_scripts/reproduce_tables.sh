@@ -38,6 +38,8 @@ Options:
   --lpips_weights PATH      LPIPS-VGG weights (default data/lpips/lpips_vgg.bin; column empty if absent)
   --num_threads N           threads per watergs call (default 0 = all cores)
   --note TEXT               line written at the top of tables.md
+  --baseline NAME=JSON      a baseline run's extract/eval JSON (e.g. from baseline_hidden_3dgs.sh),
+                            checked in claims.md against the paper's claim that baselines fail; repeatable
   -h, --help                this text
 EOF
 }
@@ -61,6 +63,7 @@ lpips_weights="$repo_root/data/lpips/lpips_vgg.bin"
 num_threads=0
 note=""
 decoder_specs=()
+baseline_args=()    # --baseline NAME=JSON pairs for check_claims.py
 scenes=()           # each: dataset|label|workspace|downscale|gamma
 datasets_asked=()   # each: dataset|dir
 
@@ -84,6 +87,7 @@ while [ $# -gt 0 ]; do
     --lpips_weights) need_value "$1" $#; lpips_weights="$2" ;;
     --num_threads) need_value "$1" $#; num_threads="$2" ;;
     --note) need_value "$1" $#; note="$2" ;;
+    --baseline) need_value "$1" $#; baseline_args+=(--baseline "$2") ;;
     -*) die "unknown option '$1' (see --help)" ;;
     *) scenes+=("custom|$(basename "$1")|$1||"); shift; continue ;;
   esac
@@ -280,6 +284,8 @@ settings="train_iterations=$train_iterations, embed_iterations=$embed_iterations
 settings+=" gamma=$gamma_option, seeds=$seeds_option, crop_size=$crop_size, num_threads=$num_threads"
 python3 "$script_dir/aggregate_tables.py" --manifest "$manifest_file" --output_dir "$out_dir" \
   --main_length "$main_length" --settings "$settings" --note "$note"
+python3 "$script_dir/check_claims.py" --results "$out_dir/results.csv" --output "$out_dir/claims.md" \
+  --main_length "$main_length" "${baseline_args[@]}"
 cp "$commands_file" "$out_dir/.commands.txt.tmp"
 mv "$out_dir/.commands.txt.tmp" "$out_dir/commands.txt"
-log "wrote $out_dir/tables.md, $out_dir/results.csv and $out_dir/commands.txt"
+log "wrote $out_dir/tables.md, $out_dir/claims.md, $out_dir/results.csv and $out_dir/commands.txt"
