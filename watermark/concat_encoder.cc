@@ -74,17 +74,23 @@ ShTarget ParseShTarget(const std::string& text) {
   return target;
 }
 
-std::vector<float> PackShCoeffs(const GaussianModel& model,
-                                const ShTarget& target) {
+void PackShRow(const GaussianModel& model, const ShTarget& target, size_t i,
+               float* row) {
   const int stride = model.sh_rest_stride();
-  const int coeffs = target.NumCoeffs(model.sh_degree);
-  std::vector<float> packed(model.size() * coeffs);
-  for (size_t i = 0; i < model.size(); ++i) {
-    float* row = &packed[i * coeffs];
-    if (target.dc) row = std::copy_n(&model.sh_dc[3 * i], 3, row);
-    if (target.rest) std::copy_n(&model.sh_rest[stride * i], stride, row);
+  if (target.dc) row = std::copy_n(&model.sh_dc[3 * i], 3, row);
+  if (target.rest) std::copy_n(&model.sh_rest[stride * i], stride, row);
+}
+
+void AddShRow(const ShTarget& target, const float* offset, size_t i,
+              GaussianModel* model) {
+  if (target.dc) {
+    for (int k = 0; k < 3; ++k) model->sh_dc[3 * i + k] += *offset++;
   }
-  return packed;
+  const int stride = model->sh_rest_stride();
+  if (target.rest) {
+    for (int k = 0; k < stride; ++k)
+      model->sh_rest[stride * i + k] += offset[k];
+  }
 }
 
 template <typename T>
@@ -177,8 +183,8 @@ ConcatMlpWeights<const float> ConcatEncoder::Weights() const {
           fc1_.bias.value, fc2_.weight.value, fc2_.bias.value};
 }
 
-void ConcatEncoder::Encode(const GaussianModel& model, const Bits& message,
-                           GaussianModel* out, Activations* act) const {
+void ConcatEncoder::CheckInput(const GaussianModel& model,
+                               const Bits& message) const {
   if (model.sh_degree != sh_degree_) {
     Fail("concat encoder: built for SH degree " + std::to_string(sh_degree_) +
          ", the model has degree " + std::to_string(model.sh_degree));
@@ -191,20 +197,26 @@ void ConcatEncoder::Encode(const GaussianModel& model, const Bits& message,
     Fail("concat encoder: the model holds " + std::to_string(bad) +
          " NaN/Inf values");
   }
-  act->inputs = PackShCoeffs(model, target_);
-  act->signs = MessageSigns(message);
-  ConcatMlpForward<float>(Weights(), act->inputs, act->signs, &act->offsets,
-                          &act->hidden);
+}
+
+void ConcatEncoder::Apply(const GaussianModel& model, const Bits& message,
+                          GaussianModel* out) const {
+  CheckInput(model, message);
+  const std::vector<float> signs = MessageSigns(message);
   *out = model;
-  const int stride = model.sh_rest_stride();
-  for (size_t i = 0; i < model.size(); ++i) {
-    const float* offset = &act->offsets[i * coeffs_];
-    if (target_.dc) {
-      for (int k = 0; k < 3; ++k) out->sh_dc[3 * i + k] += *offset++;
+  // In blocks of Gaussians, so that the hidden layer of a large scene is
+  // never held at once.
+  constexpr size_t kBlock = 1 << 16;
+  std::vector<float> inputs, offsets, hidden;
+  for (size_t begin = 0; begin < model.size(); begin += kBlock) {
+    const size_t end = std::min(model.size(), begin + kBlock);
+    inputs.resize((end - begin) * coeffs_);
+    for (size_t i = begin; i < end; ++i) {
+      PackShRow(model, target_, i, &inputs[(i - begin) * coeffs_]);
     }
-    if (target_.rest) {
-      for (int k = 0; k < stride; ++k)
-        out->sh_rest[stride * i + k] += offset[k];
+    ConcatMlpForward<float>(Weights(), inputs, signs, &offsets, &hidden);
+    for (size_t i = begin; i < end; ++i) {
+      AddShRow(target_, &offsets[(i - begin) * coeffs_], i, out);
     }
   }
   if (out->CountNonFinite() != 0) {
@@ -215,45 +227,41 @@ void ConcatEncoder::Encode(const GaussianModel& model, const Bits& message,
 GaussianModel ConcatEncoder::Apply(const GaussianModel& model,
                                    const Bits& message) const {
   GaussianModel out;
-  Activations act;
-  Encode(model, message, &out, &act);
+  Apply(model, message, &out);
   return out;
 }
 
-void ConcatEncoder::Forward(const GaussianModel& model, const Bits& message,
-                            GaussianModel* out) {
-  Encode(model, message, out, &last_);
-}
-
-void ConcatEncoder::Backward(const GaussianGradients& grads) {
-  const size_t n = last_.inputs.size() / coeffs_;
-  const size_t stride = 3 * (NumShCoeffs(sh_degree_) - 1);
+void ConcatEncoder::Backward(const GaussianModel& model, const Bits& message,
+                             const GaussianGradients& grads) {
+  CheckInput(model, message);
+  const size_t n = model.size();
+  const size_t stride = model.sh_rest_stride();
   if (grads.sh_dc.size() != 3 * n || grads.sh_rest.size() != stride * n ||
       (!grads.visible.empty() && grads.visible.size() != n)) {
-    Fail("concat encoder: gradients do not match the last forward's model");
+    Fail("concat encoder: the gradients do not match the model");
   }
   // Only Gaussians with a gradient contribute: gather those rows (a crop
   // sees few of a scene's Gaussians).
   rows_inputs_.clear();
-  rows_hidden_.clear();
   rows_doffsets_.clear();
   for (size_t i = 0; i < n; ++i) {
     if (!grads.visible.empty() && !grads.visible[i]) continue;
+    rows_inputs_.resize(rows_inputs_.size() + coeffs_);
+    PackShRow(model, target_, i, &rows_inputs_[rows_inputs_.size() - coeffs_]);
     const float* dc = &grads.sh_dc[3 * i];
     const float* rest = grads.sh_rest.data() + stride * i;
     if (target_.dc) rows_doffsets_.insert(rows_doffsets_.end(), dc, dc + 3);
     if (target_.rest) {
       rows_doffsets_.insert(rows_doffsets_.end(), rest, rest + stride);
     }
-    const float* in = &last_.inputs[i * coeffs_];
-    rows_inputs_.insert(rows_inputs_.end(), in, in + coeffs_);
-    const float* h = &last_.hidden[i * hidden_];
-    rows_hidden_.insert(rows_hidden_.end(), h, h + hidden_);
   }
+  const std::vector<float> signs = MessageSigns(message);
+  ConcatMlpForward<float>(Weights(), rows_inputs_, signs, &rows_offsets_,
+                          &rows_hidden_);
   const ConcatMlpWeights<float> g{
       coeffs_,        num_bits_,        hidden_,       fc1_.weight.grad,
       fc1_.bias.grad, fc2_.weight.grad, fc2_.bias.grad};
-  ConcatMlpBackward<float>(Weights(), rows_inputs_, last_.signs, rows_hidden_,
+  ConcatMlpBackward<float>(Weights(), rows_inputs_, signs, rows_hidden_,
                            rows_doffsets_, g);
 }
 
@@ -295,7 +303,7 @@ ConcatStepStats ConcatEncoderTrainer::Step() {
   stats.iteration = iteration_ + 1;
   Bits message(encoder_->num_bits());
   for (auto& bit : message) bit = rng_() & 1;
-  encoder_->Forward(model_, message, &encoded_);
+  encoder_->Apply(model_, message, &encoded_);
 
   const size_t view = train_views_[rng_() % train_views_.size()];
   const RenderCamera camera = views_.Camera(view);
@@ -323,7 +331,7 @@ ConcatStepStats ConcatEncoderTrainer::Step() {
   }
   rasterizer_->Backward(encoded_, *context, grad_image_, &grads_);
   adam_.ZeroGrad();
-  encoder_->Backward(grads_);
+  encoder_->Backward(model_, message, grads_);
   adam_.Step();
   iteration_ = stats.iteration;
   return stats;

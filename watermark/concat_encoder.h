@@ -41,10 +41,13 @@ struct ShTarget {
 // Parses "f_dc", "f_rest", or "sh" / "f_dc,f_rest" (both); throws Error.
 ShTarget ParseShTarget(const std::string& text);
 
-// The chosen coefficients of every Gaussian, N x target.NumCoeffs packed per
-// Gaussian (f_dc's 3 first, then f_rest in the model's layout).
-std::vector<float> PackShCoeffs(const GaussianModel& model,
-                                const ShTarget& target);
+// The chosen coefficients of Gaussian i of `model` into `row`
+// (target.NumCoeffs values: f_dc's 3 first, then f_rest in the model's
+// layout), and back: `offset` added to them in `model`.
+void PackShRow(const GaussianModel& model, const ShTarget& target, size_t i,
+               float* row);
+void AddShRow(const ShTarget& target, const float* offset, size_t i,
+              GaussianModel* model);
 
 // Weights of the MLP E as views (row-major): w1 [hidden, coeffs + bits]
 // whose first `coeffs` columns read h_i and the rest the message, b1
@@ -84,15 +87,19 @@ class ConcatEncoder {
                 uint32_t seed);
 
   // h' = h + E(h, m) on the target groups of `model` (Error unless `model`
-  // has this encoder's SH degree and every result is finite); every other
-  // array is copied bit-identically.
+  // is finite, has this encoder's SH degree and the message its length, and
+  // every result is finite); every other array is copied bit-identically.
   GaussianModel Apply(const GaussianModel& model, const Bits& message) const;
-  // As Apply into `out`, keeping what Backward needs (training).
-  void Forward(const GaussianModel& model, const Bits& message,
-               GaussianModel* out);
-  // Adds dLoss/dweights to the parameters' grad for the model of the last
-  // Forward, from dLoss/d(h') (the rasterizer's sh_dc / sh_rest gradients).
-  void Backward(const GaussianGradients& grads);
+  // As above into `out` (not `model`), reusing its storage.
+  void Apply(const GaussianModel& model, const Bits& message,
+             GaussianModel* out) const;
+  // Adds dLoss/dweights to the parameters' grad for out = Apply(model,
+  // message), from dLoss/d(out)'s sh_dc / sh_rest (the rasterizer's
+  // gradients, not compact). Only Gaussians marked visible (all when
+  // grads.visible is empty) contribute; their hidden layer is recomputed, so
+  // nothing per Gaussian is kept between Apply and Backward.
+  void Backward(const GaussianModel& model, const Bits& message,
+                const GaussianGradients& grads);
 
   // w1, b1, w2, b2.
   std::vector<Parameter*> Parameters();
@@ -101,17 +108,9 @@ class ConcatEncoder {
   int sh_degree() const { return sh_degree_; }
 
  private:
-  // What a forward pass computes and its backward pass reads.
-  struct Activations {
-    // Packed inputs (n x coeffs), message signs, ReLU outputs (n x hidden),
-    // offsets (n x coeffs).
-    std::vector<float> inputs, signs, hidden, offsets;
-  };
-
   ConcatMlpWeights<const float> Weights() const;
-  // Apply's work, keeping the activations in `act`.
-  void Encode(const GaussianModel& model, const Bits& message,
-              GaussianModel* out, Activations* act) const;
+  // Error unless `model` and `message` fit this encoder.
+  void CheckInput(const GaussianModel& model, const Bits& message) const;
 
   ShTarget target_;
   int sh_degree_, num_bits_, coeffs_, hidden_;
@@ -119,10 +118,8 @@ class ConcatEncoder {
   // all Gaussians is ConcatMlpForward / Backward, not Linear's per-sample
   // loops.
   Linear fc1_, fc2_;
-  // The last Forward's activations.
-  Activations last_;
   // Backward's gathered rows (reused).
-  std::vector<float> rows_inputs_, rows_hidden_, rows_doffsets_;
+  std::vector<float> rows_inputs_, rows_hidden_, rows_offsets_, rows_doffsets_;
 };
 
 struct ConcatTrainOptions {

@@ -162,7 +162,7 @@ TEST(ConcatEncoder, GradientThroughTheRasterizerMatchesFiniteDifferences) {
   const RenderCamera cam = s.views.Camera(0);
 
   GaussianModel encoded;
-  encoder.Forward(s.model, message, &encoded);
+  encoder.Apply(s.model, message, &encoded);
   const std::vector<float> targets(message.begin(), message.end());
   GaussianGradients grads;
   MessageLossGradient(*rasterizer, encoded, cam, options, PixelRect{}, decoder,
@@ -170,7 +170,7 @@ TEST(ConcatEncoder, GradientThroughTheRasterizerMatchesFiniteDifferences) {
   for (Parameter* p : encoder.Parameters()) {
     std::fill(p->grad.begin(), p->grad.end(), 0.f);
   }
-  encoder.Backward(grads);
+  encoder.Backward(s.model, message, grads);
   double norm2 = 0;
   for (Parameter* p : encoder.Parameters()) {
     for (float g : p->grad) norm2 += double(g) * g;
