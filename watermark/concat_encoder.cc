@@ -27,7 +27,8 @@ using ConstVector = Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>>;
 template <typename T>
 using MutableVector = Eigen::Map<Eigen::Matrix<T, Eigen::Dynamic, 1>>;
 
-// Coefficients of `target` at `sh_degree`; Error if there are none.
+// Coefficients of `target` at `sh_degree`; Error if there are none or the
+// message length or hidden width is not positive.
 int CheckedCoeffs(const ShTarget& target, int sh_degree, int num_bits,
                   int hidden) {
   if (num_bits < 1) Fail("concat encoder: the message needs at least 1 bit");
