@@ -128,7 +128,12 @@ void ConcatMlpBackward(const ConcatMlpWeights<const T>& w,
   const ConstMap<T> w2(w.w2.data(), w.coeffs, w.hidden);
   MutableMap<T>(grads.w2.data(), w.coeffs, w.hidden).noalias() +=
       dout.transpose() * h;
-  MutableVector<T>(grads.b2.data(), w.coeffs) += dout.colwise().sum();
+  // Column sums go into an owned (aligned) vector first: evaluated straight
+  // into the unaligned grad buffer, Eigen would sum some columns in packets
+  // and the rest one by one depending on that buffer's address, so the
+  // result would change in the last bit from one process to the next.
+  const Eigen::Matrix<T, Eigen::Dynamic, 1> db2 = dout.colwise().sum();
+  MutableVector<T>(grads.b2.data(), w.coeffs) += db2;
   // Through the ReLU: zero where the unit was off.
   RowMatrix<T> dh = dout * w2;
   dh = (h.array() > T(0)).select(dh, T(0));

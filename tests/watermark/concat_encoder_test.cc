@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -101,6 +103,55 @@ TEST(ConcatMlp, WeightGradientsMatchFiniteDifferencesInDouble) {
       EXPECT_NEAR((up - down) / (2 * eps), (*analytic[p])[k], 1e-7)
           << "parameter " << p << " entry " << k;
     }
+  }
+}
+
+// The gradients must not depend on where the buffers lie in memory: an
+// Eigen reduction evaluated straight into an unaligned buffer sums some
+// entries in SIMD packets and the rest one by one by the buffer's address,
+// which made repeated concat_embed runs differ in the last bits. The grads
+// (and the upstream gradient) are placed at every float offset within a
+// 64-byte line; 48 coefficients (an SH degree 3 "sh" target) span whole
+// AVX-512 packets plus a tail. Results must be bit-identical.
+TEST(ConcatMlp, GradientsDoNotDependOnBufferAlignment) {
+  const int n = 300, coeffs = 48, bits = 32, hidden = 64;
+  std::mt19937 rng(4);
+  std::normal_distribution<float> normal(0, 1);
+  auto random = [&](size_t size) {
+    std::vector<float> v(size);
+    for (float& x : v) x = normal(rng);
+    return v;
+  };
+  const std::vector<float> w1 = random(size_t(hidden) * (coeffs + bits)),
+                           b1 = random(hidden), w2 = random(coeffs * hidden),
+                           b2 = random(coeffs), inputs = random(n * coeffs),
+                           doffsets = random(n * coeffs);
+  std::vector<float> signs(bits);
+  for (int k = 0; k < bits; ++k) signs[k] = k % 3 ? 1.f : -1.f;
+  const ConcatMlpWeights<const float> w{coeffs, bits, hidden, w1, b1, w2, b2};
+  std::vector<float> offsets, hidden_act;
+  ConcatMlpForward<float>(w, inputs, signs, &offsets, &hidden_act);
+  const size_t sizes[] = {w1.size(), b1.size(), w2.size(), b2.size()};
+  const size_t total = w1.size() + b1.size() + w2.size() + b2.size();
+  std::vector<float> first;
+  for (int shift = 0; shift < 16; ++shift) {
+    // Over-allocated Eigen vectors are 64-byte aligned; `shift` floats in.
+    Eigen::VectorXf grads = Eigen::VectorXf::Zero(total + 16);
+    Eigen::VectorXf dout(doffsets.size() + 16);
+    std::copy(doffsets.begin(), doffsets.end(), dout.data() + shift);
+    float* g[4];
+    g[0] = grads.data() + shift;
+    for (int k = 1; k < 4; ++k) g[k] = g[k - 1] + sizes[k - 1];
+    const ConcatMlpWeights<float> view{coeffs,           bits,
+                                       hidden,           {g[0], sizes[0]},
+                                       {g[1], sizes[1]}, {g[2], sizes[2]},
+                                       {g[3], sizes[3]}};
+    ConcatMlpBackward<float>(
+        w, inputs, signs, hidden_act,
+        std::span<const float>(dout.data() + shift, doffsets.size()), view);
+    const std::vector<float> result(g[0], g[0] + total);
+    if (shift == 0) first = result;
+    EXPECT_EQ(result, first) << "grads " << shift << " floats off alignment";
   }
 }
 
