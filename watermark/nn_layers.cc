@@ -124,8 +124,7 @@ void Conv2d::Backward(const Tensor& x, const Tensor& dy, Tensor* dx,
       }
       MapMatrix(weight.grad.data(), out_, k_rows).noalias() +=
           grad_out * ConstMapMatrix(col, k_rows, hw).transpose();
-      Eigen::Map<Eigen::VectorXf>(bias.grad.data(), out_) +=
-          grad_out.rowwise().sum();
+      AddRowSums(dy.Plane(b, 0), out_, hw, bias.grad.data());
     }
     if (!dx) continue;
     if (kernel_ == 1) {
@@ -314,6 +313,16 @@ void Linear::Backward(const Tensor& x, const Tensor& dy, Tensor* dx,
       }
       if (weight_grads) bias.grad[o] += g;
     }
+  }
+}
+
+void AddRowSums(const float* rows, int num_rows, size_t row_length,
+                float* sums) {
+  for (int r = 0; r < num_rows; ++r) {
+    const float* row = rows + size_t(r) * row_length;
+    float sum = 0.f;
+    for (size_t i = 0; i < row_length; ++i) sum += row[i];
+    sums[r] += sum;
   }
 }
 

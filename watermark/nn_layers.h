@@ -119,6 +119,13 @@ class Linear {
 double BceWithLogits(const Tensor& logits, const std::vector<float>& targets,
                      Tensor* dlogits);
 
+// rows [num_rows, row_length] (row-major): sums[r] += sum of row r, added in
+// index order. Eigen's rowwise().sum() splits a row into SIMD packets by the
+// row's address, so its last bits (and a training run's) varied with where
+// the heap put the buffer.
+void AddRowSums(const float* rows, int num_rows, size_t row_length,
+                float* sums);
+
 // Mean squared difference; da (if not null) gets d/da.
 double MseLoss(const Tensor& a, const Tensor& b, Tensor* da);
 

@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <random>
 
@@ -288,6 +290,36 @@ TEST(LossTest, MseGradientMatchesFiniteDifferences) {
     return s / double(ad.size());
   };
   ExpectClose(grad.data, NumericGradient(&ad, loss), "mse da");
+}
+
+// The convolution's bias gradient (row sums of dy) must not depend on where
+// dy sits in memory, or training runs differ in their last bits between
+// processes. Rows of odd length at every float offset of a 64-byte line.
+TEST(RowSumsTest, BitIdenticalAtEveryBufferOffset) {
+  const int rows = 32;
+  const size_t length = 37 * 29;
+  std::mt19937 rng(5);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  std::vector<float> values(rows * length);
+  for (float& v : values) v = normal(rng);
+  std::vector<float> reference;
+  for (int offset = 0; offset < 16; ++offset) {
+    std::vector<float> buffer(offset + values.size());
+    std::copy(values.begin(), values.end(), buffer.begin() + offset);
+    std::vector<float> sums(rows, 0.5f);
+    AddRowSums(buffer.data() + offset, rows, length, sums.data());
+    if (offset == 0) {
+      reference = sums;
+      for (int r = 0; r < rows; ++r) {
+        double exact = 0.5;
+        for (size_t i = 0; i < length; ++i) exact += values[r * length + i];
+        EXPECT_NEAR(sums[r], exact, 1e-3) << "row " << r;
+      }
+    }
+    EXPECT_EQ(std::memcmp(sums.data(), reference.data(), rows * sizeof(float)),
+              0)
+        << "offset " << offset;
+  }
 }
 
 TEST(AdamTest, FirstStepMovesByLearningRateAgainstTheGradientSign) {
