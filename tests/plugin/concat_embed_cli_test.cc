@@ -19,6 +19,8 @@ namespace {
 using testing::RunCommand;
 using testing::TempDir;
 using testing::WatergsBin;
+using testing::WriteAsciiPlyWithNormals;
+using testing::WriteTinyDecoder;
 
 // A one-line error naming `what`, non-zero exit.
 void ExpectOneLineError(const testing::CommandResult& run,
@@ -40,21 +42,8 @@ TEST(ConcatEmbedCli, KeepsTheLayoutAndFrozenAttributesAndRefusesBadInput) {
   const std::string ws =
       testing::MakeRenderedWorkspace(dir / "ws", options, &truth);
   // Input in a non-default layout: ASCII with non-zero normals.
-  PlyLayout layout = InriaPlyLayout(1, truth.size());
-  layout.format = PlyFormat::kAscii;
-  for (size_t k = 0; k < layout.extra_values.size(); ++k) {
-    layout.extra_values[k] = 0.25 * double(k % 7);
-  }
-  const std::string raw = dir / "raw.ply";
-  WritePly(raw, truth, layout);
-  HiddenConfig config;
-  config.num_bits = 16;
-  config.channels = 6;
-  config.encoder_blocks = 1;
-  config.decoder_blocks = 2;
-  HiddenModel net(config, false, 3);
-  const std::string decoder = dir / "decoder.bin";
-  SaveHiddenModel(decoder, net, false);
+  const std::string raw = WriteAsciiPlyWithNormals(dir / "raw.ply", truth);
+  const std::string decoder = WriteTinyDecoder(dir / "decoder.bin");
 
   const std::string wm = dir / "wm.ply";
   const std::string base = WatergsBin() + " concat_embed --input_path " + raw +

@@ -286,14 +286,7 @@ TEST(CrashSafety, KilledTrainAndEmbedResumeToTheUninterruptedResult) {
   EXPECT_EQ(ReadLog(out + "/train_log.jsonl"), log);
 
   // Embed into the trained model with a tiny random decoder.
-  HiddenConfig config;
-  config.num_bits = 16;
-  config.channels = 6;
-  config.encoder_blocks = 1;
-  config.decoder_blocks = 2;
-  HiddenModel net(config, false, 3);
-  const std::string decoder = dir / "decoder.bin";
-  SaveHiddenModel(decoder, net, false);
+  const std::string decoder = testing::WriteTinyDecoder(dir / "decoder.bin");
   const auto embed_args = [&](const std::string& out_ply) {
     return std::vector<std::string>{"embed",
                                     "--input_path",

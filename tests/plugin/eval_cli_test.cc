@@ -16,6 +16,7 @@
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "synthetic_model.h"
+#include "tests/plugin/rendered_workspace.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {
@@ -24,6 +25,7 @@ namespace {
 using testing::RunCommand;
 using testing::TempDir;
 using testing::WatergsBin;
+using testing::WriteTinyDecoder;
 
 // WS with 9 views (48x36; held out: views 0 and 8) rendered from Gaussians at
 // the SfM points (written to raw.ply), a perturbed copy (wm.ply) and a tiny
@@ -66,13 +68,7 @@ Scene MakeScene(const TempDir& dir) {
   GaussianModel wm = truth;
   for (size_t k = 0; k < wm.sh_dc.size(); ++k) wm.sh_dc[k] += 0.02f;
   WritePly(scene.wm, wm);
-  HiddenConfig config;
-  config.num_bits = 16;
-  config.channels = 6;
-  config.encoder_blocks = 1;
-  config.decoder_blocks = 2;
-  HiddenModel net(config, false, 3);
-  SaveHiddenModel(scene.decoder, net, false);
+  WriteTinyDecoder(scene.decoder);
   return scene;
 }
 

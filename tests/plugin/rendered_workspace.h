@@ -1,6 +1,7 @@
-// Test helper shared by the CLI tests: a COLMAP workspace whose images are
+// Test helpers shared by the CLI tests: a COLMAP workspace whose images are
 // renders of Gaussians placed at its SfM points, so that training and
-// embedding on it converge quickly.
+// embedding on it converge quickly; a tiny decoder; a PLY in a non-default
+// layout.
 #pragma once
 
 #include <string>
@@ -9,12 +10,14 @@
 #include "gaussian/file_util.h"
 #include "gaussian/gaussian_model.h"
 #include "gaussian/image.h"
+#include "gaussian/ply_io.h"
 #include "gaussian/point_init.h"
 #include "gaussian/rasterizer.h"
 #include "plugin/reconstruction_io.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "tests/plugin/synthetic_model.h"
+#include "watermark/hidden_model.h"
 
 namespace watergs::testing {
 
@@ -48,6 +51,32 @@ inline std::string MakeRenderedWorkspace(const std::string& ws,
   }
   if (truth) *truth = std::move(gaussians);
   return ws;
+}
+
+// Writes an untrained 16-bit decoder (6 channels, 2 blocks, no encoder) to
+// `path`: small enough for CLI tests; returns path.
+inline std::string WriteTinyDecoder(const std::string& path) {
+  HiddenConfig config;
+  config.num_bits = 16;
+  config.channels = 6;
+  config.encoder_blocks = 1;
+  config.decoder_blocks = 2;
+  HiddenModel net(config, false, 3);
+  SaveHiddenModel(path, net, false);
+  return path;
+}
+
+// Writes `model` as an ASCII PLY with non-zero normals (a layout other than
+// the writer's default, which outputs must keep); returns path.
+inline std::string WriteAsciiPlyWithNormals(const std::string& path,
+                                            const GaussianModel& model) {
+  PlyLayout layout = InriaPlyLayout(1, model.size());
+  layout.format = PlyFormat::kAscii;
+  for (size_t k = 0; k < layout.extra_values.size(); ++k) {
+    layout.extra_values[k] = 0.25 * double(k % 7);
+  }
+  WritePly(path, model, layout);
+  return path;
 }
 
 }  // namespace watergs::testing
