@@ -120,4 +120,15 @@ void CreateDirectories(const std::string& path) {
   if (ec) FailAt(path, "cannot create folder: " + ec.message());
 }
 
+bool SamePath(const std::string& a, const std::string& b) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::equivalent(a, b, ec) && !ec) return true;
+  const fs::path ca = fs::weakly_canonical(a, ec);
+  if (ec) return a == b;
+  const fs::path cb = fs::weakly_canonical(b, ec);
+  if (ec) return a == b;
+  return ca == cb;
+}
+
 }  // namespace watergs

@@ -26,4 +26,9 @@ void AtomicWriteFile(const std::string& path, const std::string& bytes);
 // Creates a directory and its parents; throws Error on failure.
 void CreateDirectories(const std::string& path);
 
+// True when two paths name the same file or folder however they are spelled
+// ("a.ply", "./a.ply", a symlink to it); compares normalised absolute paths
+// when either does not exist yet.
+bool SamePath(const std::string& a, const std::string& b);
+
 }  // namespace watergs

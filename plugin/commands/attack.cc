@@ -40,7 +40,7 @@ int RunAttack(int argc, char** argv) {
   parser.AddRequired("output_path", &output_path, "Attacked PLY to write");
   parser.Add("seed", &seed, "Random seed");
   if (!parser.Parse(argc, argv)) return 0;
-  if (input_path == output_path) {
+  if (SamePath(input_path, output_path)) {
     Fail("attack: --output_path must differ from --input_path");
   }
   const std::vector<ModelAttackSpec> specs = ParseModelAttackList(attacks);

@@ -12,6 +12,7 @@
 
 #include "gaussian/device.h"
 #include "gaussian/error.h"
+#include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
 #include "gaussian/progress.h"
 #include "plugin/command.h"
@@ -40,7 +41,7 @@ struct ConcatArgs {
 };
 
 void Validate(const ConcatArgs& a) {
-  if (a.input_path == a.output_path) {
+  if (SamePath(a.input_path, a.output_path)) {
     Fail("concat_embed: --output_path must differ from --input_path");
   }
   if (a.iterations < 0) Fail("--iterations must be >= 0");

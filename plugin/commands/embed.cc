@@ -53,7 +53,7 @@ struct EmbedArgs {
 };
 
 void Validate(const EmbedArgs& a) {
-  if (a.input_path == a.output_path) {
+  if (SamePath(a.input_path, a.output_path)) {
     Fail("embed: --output_path must differ from --input_path");
   }
   if (a.iterations < 1) Fail("--iterations must be at least 1");

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "gaussian/error.h"
+#include "gaussian/file_util.h"
 #include "gaussian/loss.h"
 #include "gaussian/progress.h"
 #include "plugin/command.h"
@@ -69,7 +70,7 @@ int RunEncodeImages(int argc, char** argv) {
   if (parser.device() == Device::kCuda) {
     Fail("encode_images: the encoder runs on the CPU (use --device cpu)");
   }
-  if (fs::weakly_canonical(image_path) == fs::weakly_canonical(output_path)) {
+  if (SamePath(image_path, output_path)) {
     Fail("encode_images: --output_path must differ from --image_path");
   }
   const std::vector<fs::path> files = ImageFiles(image_path);

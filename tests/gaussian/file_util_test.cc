@@ -27,6 +27,23 @@ TEST(FileUtil, AtomicWriteReplacesContent) {
   EXPECT_EQ(std::string(bytes.begin(), bytes.end()), "second");
 }
 
+// Commands refuse an output that is their input; the check must see through
+// spellings, or "./a.ply" would overwrite "a.ply".
+TEST(FileUtil, SamePathSeesThroughSpellingsAndLinks) {
+  const std::string dir = TempDir("same");
+  const std::string a = dir + "/a.ply", b = dir + "/b.ply";
+  EXPECT_TRUE(SamePath(a, dir + "/./a.ply"));  // neither exists yet
+  EXPECT_TRUE(SamePath(a, dir + "/sub/../a.ply"));
+  EXPECT_FALSE(SamePath(a, b));
+  AtomicWriteFile(a, std::string("x"));
+  AtomicWriteFile(b, std::string("x"));
+  EXPECT_TRUE(SamePath(a, dir + "//a.ply"));
+  EXPECT_FALSE(SamePath(a, b));
+  std::filesystem::create_symlink(a, dir + "/link.ply");
+  EXPECT_TRUE(SamePath(dir + "/link.ply", a));
+  EXPECT_FALSE(SamePath(dir + "/link.ply", b));
+}
+
 TEST(FileUtil, FailedWriterLeavesPreviousVersionAndNoTemporary) {
   const std::string dir = TempDir("fail");
   const std::string path = dir + "/a.bin";

@@ -76,6 +76,10 @@ TEST(ConcatEmbedCli, KeepsTheLayoutAndFrozenAttributesAndRefusesBadInput) {
                  " --message hex:a5c3 --output_path " + bad_out),
       missing);
   ExpectOneLineError(RunCommand(base + " --output_path " + raw), "differ");
+  // The same file spelled differently is refused too.
+  const std::string raw_respelled = dir / "./raw.ply";
+  ExpectOneLineError(RunCommand(base + " --output_path " + raw_respelled),
+                     "differ");
   EXPECT_FALSE(std::filesystem::exists(bad_out));
 }
 
