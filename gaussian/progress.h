@@ -32,6 +32,25 @@ class ProgressBar {
   bool interactive_;
 };
 
+// Exponential moving average of a figure shown on a progress line (a loss,
+// a bit error rate); the first value starts it.
+class RunningAverage {
+ public:
+  // `keep` in [0, 1): the weight of the previous average at each Add.
+  explicit RunningAverage(double keep) : keep_(keep) {}
+  // Folds in x; returns the new average.
+  double Add(double x) {
+    value_ = started_ ? keep_ * value_ + (1 - keep_) * x : x;
+    started_ = true;
+    return value_;
+  }
+  double value() const { return value_; }
+
+ private:
+  double keep_, value_ = 0;
+  bool started_ = false;
+};
+
 // "1h02m", "3m05s", "12.3s".
 std::string FormatDuration(double seconds);
 

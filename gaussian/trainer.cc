@@ -445,7 +445,7 @@ void Trainer::Run() {
         std::make_unique<ProgressBar>("train", options_.iterations, iteration_);
   }
   auto last_flush = Clock::now();
-  double loss_ema = 0;
+  RunningAverage loss(0.6);
   while (iteration_ < options_.iterations) {
     const int64_t it = iteration_ + 1;
     const bool test_now = !options_.test_views.empty() &&
@@ -462,9 +462,7 @@ void Trainer::Run() {
                            options_.background, active_sh_degree_);
     }
     const IterationStats stats = Step();
-    loss_ema = stats.iteration == 1 || loss_ema == 0
-                   ? stats.loss.total
-                   : 0.4 * stats.loss.total + 0.6 * loss_ema;
+    loss.Add(stats.loss.total);
     if (test_now || it == 1 || it == options_.iterations ||
         (options_.log_every > 0 && it % options_.log_every == 0)) {
       AppendLog(stats, test_now ? &test : nullptr);
@@ -483,7 +481,7 @@ void Trainer::Run() {
     if (bar) {
       char status[96];
       std::snprintf(status, sizeof(status), "loss %.4f  %zu Gaussians",
-                    loss_ema, stats.num_gaussians);
+                    loss.value(), stats.num_gaussians);
       std::string line = status;
       if (test_now) line += "  test PSNR " + std::to_string(test.psnr);
       bar->Update(it, line);

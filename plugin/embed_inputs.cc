@@ -46,6 +46,7 @@ Fidelity MeasureFidelity(Rasterizer& rasterizer, const GaussianModel& raw,
     for (float& x : raw_image.data) x = std::clamp(x, 0.f, 1.f);
     f.psnr_vs_raw += Psnr(marked_image, raw_image) / view_ids.size();
     f.psnr_vs_truth += Psnr(marked_image, *views.Image(v)) / view_ids.size();
+    f.raw_psnr_vs_truth += Psnr(raw_image, *views.Image(v)) / view_ids.size();
   }
   return f;
 }

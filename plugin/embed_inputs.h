@@ -46,8 +46,9 @@ std::vector<size_t> SpreadViews(const std::vector<size_t>& views, int count);
 
 struct Fidelity {
   // Mean over the views of the watermarked render's PSNR (dB) against the
-  // ground truth and against the raw model's render.
-  double psnr_vs_truth = 0, psnr_vs_raw = 0;
+  // ground truth and against the raw model's render, and of the raw render's
+  // against the ground truth.
+  double psnr_vs_truth = 0, psnr_vs_raw = 0, raw_psnr_vs_truth = 0;
 };
 
 // Whole-frame renders of `raw` and `marked` on `view_ids` of `views`.

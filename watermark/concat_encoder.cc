@@ -46,13 +46,6 @@ Linear MakeLinear(const std::string& name, int in, int out, uint32_t seed) {
   return Linear(name, in, out, &rng);
 }
 
-// Bit 1 -> +1, bit 0 -> -1.
-std::vector<float> MessageSigns(const Bits& message) {
-  std::vector<float> signs(message.size());
-  for (size_t i = 0; i < message.size(); ++i) signs[i] = message[i] ? 1 : -1;
-  return signs;
-}
-
 }  // namespace
 
 int ShTarget::NumCoeffs(int sh_degree) const {
@@ -189,8 +182,8 @@ ConcatMlpWeights<const float> ConcatEncoder::Weights() const {
           fc1_.bias.value, fc2_.weight.value, fc2_.bias.value};
 }
 
-void ConcatEncoder::CheckInput(const GaussianModel& model,
-                               const Bits& message) const {
+void ConcatEncoder::CheckFits(const GaussianModel& model,
+                              const Bits& message) const {
   if (model.sh_degree != sh_degree_) {
     Fail("concat encoder: built for SH degree " + std::to_string(sh_degree_) +
          ", the model has degree " + std::to_string(model.sh_degree));
@@ -199,16 +192,16 @@ void ConcatEncoder::CheckInput(const GaussianModel& model,
     Fail("concat encoder: built for " + std::to_string(num_bits_) +
          "-bit messages, got " + std::to_string(message.size()) + " bits");
   }
-  if (const size_t bad = model.CountNonFinite()) {
-    Fail("concat encoder: the model holds " + std::to_string(bad) +
-         " NaN/Inf values");
-  }
 }
 
 void ConcatEncoder::Apply(const GaussianModel& model, const Bits& message,
                           GaussianModel* out) const {
-  CheckInput(model, message);
-  const std::vector<float> signs = MessageSigns(message);
+  CheckFits(model, message);
+  if (const size_t bad = model.CountNonFinite()) {
+    Fail("concat encoder: the model holds " + std::to_string(bad) +
+         " NaN/Inf values");
+  }
+  const std::vector<float> signs = BitSigns(message);
   *out = model;
   // In blocks of Gaussians, so that the hidden layer of a large scene is
   // never held at once.
@@ -239,7 +232,8 @@ GaussianModel ConcatEncoder::Apply(const GaussianModel& model,
 
 void ConcatEncoder::Backward(const GaussianModel& model, const Bits& message,
                              const GaussianGradients& grads) {
-  CheckInput(model, message);
+  // Sizes only: the model is the one Apply checked for NaN/Inf.
+  CheckFits(model, message);
   const size_t n = model.size();
   const size_t stride = model.sh_rest_stride();
   if (grads.sh_dc.size() != 3 * n || grads.sh_rest.size() != stride * n ||
@@ -261,7 +255,7 @@ void ConcatEncoder::Backward(const GaussianModel& model, const Bits& message,
       rows_doffsets_.insert(rows_doffsets_.end(), rest, rest + stride);
     }
   }
-  const std::vector<float> signs = MessageSigns(message);
+  const std::vector<float> signs = BitSigns(message);
   ConcatMlpForward<float>(Weights(), rows_inputs_, signs, &rows_offsets_,
                           &rows_hidden_);
   const ConcatMlpWeights<float> g{
@@ -356,21 +350,17 @@ ConcatStepStats TrainConcatEncoder(const ConcatTrainOptions& options,
     bar = std::make_unique<ProgressBar>("concat_embed", options.iterations);
   }
   ConcatStepStats stats;
-  double loss_ema = -1, bce_ema = -1, ber_ema = -1;
+  RunningAverage loss(0.9), bce(0.95), ber(0.95);
   while (trainer.iteration() < options.iterations) {
     stats = trainer.Step();
-    const double ber = double(stats.bit_errors) / encoder->num_bits();
-    auto smooth = [](double ema, double x, double keep) {
-      return ema < 0 ? x : keep * ema + (1 - keep) * x;
-    };
-    loss_ema = smooth(loss_ema, stats.total, 0.9);
-    bce_ema = smooth(bce_ema, stats.bce, 0.95);
-    ber_ema = smooth(ber_ema, ber, 0.95);
+    loss.Add(stats.total);
+    bce.Add(stats.bce);
+    ber.Add(double(stats.bit_errors) / encoder->num_bits());
     if (bar) {
       char status[128];
       std::snprintf(status, sizeof(status),
-                    "loss %.4f  L1 %.4f  BCE %.3f  BER %.1f%%", loss_ema,
-                    stats.image.l1, bce_ema, 100 * ber_ema);
+                    "loss %.4f  L1 %.4f  BCE %.3f  BER %.1f%%", loss.value(),
+                    stats.image.l1, bce.value(), 100 * ber.value());
       bar->Update(stats.iteration, status);
     }
   }

@@ -109,8 +109,9 @@ class ConcatEncoder {
 
  private:
   ConcatMlpWeights<const float> Weights() const;
-  // Error unless `model` and `message` fit this encoder.
-  void CheckInput(const GaussianModel& model, const Bits& message) const;
+  // Error unless `model`'s SH degree and `message`'s length fit this
+  // encoder.
+  void CheckFits(const GaussianModel& model, const Bits& message) const;
 
   ShTarget target_;
   int sh_degree_, num_bits_, coeffs_, hidden_;

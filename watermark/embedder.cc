@@ -464,14 +464,13 @@ bool Embedder::Run() {
     bar =
         std::make_unique<ProgressBar>("embed", options_.iterations, iteration_);
   }
-  double loss_ema = -1, ber_ema = -1;
+  RunningAverage loss(0.9), ber(0.95);
   CheckResult last_check;
   bool checked = false, stopped_early = false;
   while (iteration_ < options_.iterations) {
     const EmbedStepStats stats = Step();
-    const double ber = double(stats.bit_errors) / message_.size();
-    loss_ema = loss_ema < 0 ? stats.total : 0.9 * loss_ema + 0.1 * stats.total;
-    ber_ema = ber_ema < 0 ? ber : 0.95 * ber_ema + 0.05 * ber;
+    loss.Add(stats.total);
+    ber.Add(double(stats.bit_errors) / message_.size());
     const int64_t it = stats.iteration;
     if (options_.check_every > 0 && it % options_.check_every == 0 &&
         !options_.check_views.empty()) {
@@ -486,8 +485,8 @@ bool Embedder::Run() {
     if (bar) {
       char status[160];
       std::snprintf(status, sizeof(status),
-                    "loss %.4f  BER %.1f%%  %zu Gaussians", loss_ema,
-                    100 * ber_ema, stats.num_gaussians);
+                    "loss %.4f  BER %.1f%%  %zu Gaussians", loss.value(),
+                    100 * ber.value(), stats.num_gaussians);
       std::string line = status;
       if (checked) {
         std::snprintf(status, sizeof(status), "  check BER %.1f%% PSNR %.2f",

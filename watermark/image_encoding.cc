@@ -19,11 +19,7 @@ ImageRGB EncodeImage(HiddenModel& model, const ImageRGB& cover,
   }
   Tensor input;
   ImageToTensor(cover, false, &input);
-  // The message as +-1 planes.
-  std::vector<float> signs(message.size());
-  for (size_t i = 0; i < message.size(); ++i)
-    signs[i] = message[i] ? 1.f : -1.f;
-  return TensorToImage(model.encoder->Forward(input, signs, false));
+  return TensorToImage(model.encoder->Forward(input, BitSigns(message), false));
 }
 
 }  // namespace watergs

@@ -127,4 +127,10 @@ int HammingDistance(const Bits& a, const Bits& b) {
   return d;
 }
 
+std::vector<float> BitSigns(const Bits& bits) {
+  std::vector<float> signs(bits.size());
+  for (size_t i = 0; i < bits.size(); ++i) signs[i] = bits[i] ? 1.f : -1.f;
+  return signs;
+}
+
 }  // namespace watergs

@@ -32,5 +32,7 @@ std::string BitsToString(const Bits& bits);
 std::string BitsToHex(const Bits& bits);
 // Number of positions where a and b differ; throws Error on size mismatch.
 int HammingDistance(const Bits& a, const Bits& b);
+// The message as encoder inputs: bit 1 -> +1, bit 0 -> -1.
+std::vector<float> BitSigns(const Bits& bits);
 
 }  // namespace watergs

@@ -156,17 +156,14 @@ int RunConcatEmbed(int argc, char** argv) {
              in.message, options.background);
   const Fidelity fidelity = MeasureFidelity(*rasterizer, raw, marked, *in.views,
                                             check_views, options.background);
-  const double raw_psnr = MeasureFidelity(*rasterizer, raw, raw, *in.views,
-                                          check_views, options.background)
-                              .psnr_vs_truth;
   std::printf("concat_embed: %lld iterations in %s\n",
               static_cast<long long>(a.iterations),
               FormatDuration(seconds).c_str());
   std::printf(
       "concat_embed: check views (%zu): BER %.2f%% -> %.2f%% (mean logits); "
       "PSNR vs ground truth %.2f -> %.2f dB, vs raw %.2f dB\n",
-      check_views.size(), 100 * before.ber, 100 * after.ber, raw_psnr,
-      fidelity.psnr_vs_truth, fidelity.psnr_vs_raw);
+      check_views.size(), 100 * before.ber, 100 * after.ber,
+      fidelity.raw_psnr_vs_truth, fidelity.psnr_vs_truth, fidelity.psnr_vs_raw);
   std::printf("concat_embed: wrote %s\n", a.output_path.c_str());
   return 0;
 }

@@ -22,6 +22,11 @@ TEST(Message, HexBitsAndTextGiveTheSameBits) {
   EXPECT_EQ(BitsToHex(from_text), "41");
 }
 
+TEST(Message, BitSignsMapOneToPlusOneAndZeroToMinusOne) {
+  EXPECT_EQ(BitSigns(Bits{1, 0, 0, 1}), (std::vector<float>{1, -1, -1, 1}));
+  EXPECT_TRUE(BitSigns(Bits{}).empty());
+}
+
 TEST(Message, Utf8TextUsesItsBytes) {
   // U+00E9 is 0xC3 0xA9 in UTF-8.
   EXPECT_EQ(BitsToHex(ParseMessage("\xC3\xA9", 16)), "c3a9");
