@@ -16,31 +16,18 @@
 namespace watergs {
 namespace {
 
+using testing::ExpectOneLineError;
 using testing::RunCommand;
 using testing::TempDir;
 using testing::WatergsBin;
 using testing::WriteAsciiPlyWithNormals;
 using testing::WriteTinyDecoder;
 
-// A one-line error naming `what`, non-zero exit.
-void ExpectOneLineError(const testing::CommandResult& run,
-                        const std::string& what) {
-  EXPECT_NE(run.exit_code, 0) << run.output;
-  EXPECT_NE(run.output.find(what), std::string::npos) << run.output;
-  EXPECT_LE(std::count(run.output.begin(), run.output.end(), '\n'), 1)
-      << run.output;
-}
-
 TEST(ConcatEmbedCli, KeepsTheLayoutAndFrozenAttributesAndRefusesBadInput) {
   TempDir dir("concat_embed_cli");
-  testing::SyntheticModelOptions options;
-  options.num_images = 6;
-  options.num_points = 150;
-  options.width = 48;
-  options.height = 36;
   GaussianModel truth;
-  const std::string ws =
-      testing::MakeRenderedWorkspace(dir / "ws", options, &truth);
+  const std::string ws = testing::MakeRenderedWorkspace(
+      dir / "ws", testing::SmallSceneOptions(), &truth);
   // Input in a non-default layout: ASCII with non-zero normals.
   const std::string raw = WriteAsciiPlyWithNormals(dir / "raw.ply", truth);
   const std::string decoder = WriteTinyDecoder(dir / "decoder.bin");

@@ -20,6 +20,7 @@
 namespace watergs {
 namespace {
 
+using testing::ExpectOneLineError;
 using testing::RunCommand;
 using testing::TempDir;
 using testing::WatergsBin;
@@ -28,21 +29,8 @@ using testing::WriteTinyDecoder;
 
 // WS/sparse/0 (6 pinhole views, 48x36) and WS/images rendered from `truth`.
 std::string MakeWorkspace(const TempDir& dir, GaussianModel* truth) {
-  testing::SyntheticModelOptions options;
-  options.num_images = 6;
-  options.num_points = 150;
-  options.width = 48;
-  options.height = 36;
-  return testing::MakeRenderedWorkspace(dir / "ws", options, truth);
-}
-
-// A one-line error naming `what`, non-zero exit.
-void ExpectOneLineError(const testing::CommandResult& run,
-                        const std::string& what) {
-  EXPECT_NE(run.exit_code, 0) << run.output;
-  EXPECT_NE(run.output.find(what), std::string::npos) << run.output;
-  EXPECT_LE(std::count(run.output.begin(), run.output.end(), '\n'), 1)
-      << run.output;
+  return testing::MakeRenderedWorkspace(dir / "ws",
+                                        testing::SmallSceneOptions(), truth);
 }
 
 TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {

@@ -22,6 +22,7 @@
 namespace watergs {
 namespace {
 
+using testing::ExpectOneLineError;
 using testing::RunCommand;
 using testing::TempDir;
 using testing::WatergsBin;
@@ -75,14 +76,6 @@ Scene MakeScene(const TempDir& dir) {
 nlohmann::json ReadJson(const std::string& path) {
   std::ifstream in(path);
   return nlohmann::json::parse(in);
-}
-
-void ExpectOneLineError(const testing::CommandResult& run,
-                        const std::string& what) {
-  EXPECT_NE(run.exit_code, 0) << run.output;
-  EXPECT_NE(run.output.find(what), std::string::npos) << run.output;
-  EXPECT_LE(std::count(run.output.begin(), run.output.end(), '\n'), 1)
-      << run.output;
 }
 
 TEST(EvalCli, WritesQualityAndRobustnessReports) {

@@ -4,6 +4,9 @@
 // layout.
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -51,6 +54,26 @@ inline std::string MakeRenderedWorkspace(const std::string& ws,
   }
   if (truth) *truth = std::move(gaussians);
   return ws;
+}
+
+// The small scene the embedding CLI tests render: 6 pinhole views of 48x36,
+// 150 SfM points.
+inline SyntheticModelOptions SmallSceneOptions() {
+  SyntheticModelOptions options;
+  options.num_images = 6;
+  options.num_points = 150;
+  options.width = 48;
+  options.height = 36;
+  return options;
+}
+
+// A one-line error naming `what`, non-zero exit.
+inline void ExpectOneLineError(const CommandResult& run,
+                               const std::string& what) {
+  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find(what), std::string::npos) << run.output;
+  EXPECT_LE(std::count(run.output.begin(), run.output.end(), '\n'), 1)
+      << run.output;
 }
 
 // Writes an untrained 16-bit decoder (6 channels, 2 blocks, no encoder) to
