@@ -63,11 +63,11 @@ stage_bench() {
     # Embedding: the 1M-Gaussian 1 MP scene (issue 8's 10k-iteration target)
     # and the demo scene after a short GPU training run.
     "$build/benchmarks/embed_benchmark" --synthetic 1000000 \
-      watermark/models/decoder_48.bin 20 cuda
+      watermark/models/hidden_48.bin 20 cuda
     "$build/watergs" train --device cuda --workspace_path datasets_scripts/demo_scene \
       --output_path "$build/demo_gpu" --iterations 3000 --downscale 2 > /dev/null &&
       "$build/benchmarks/embed_benchmark" "$build/demo_gpu/point_cloud.ply" \
-        datasets_scripts/demo_scene watermark/models/decoder_48.bin 30 2 cuda
+        datasets_scripts/demo_scene watermark/models/hidden_48.bin 30 2 cuda
   } > "$out/benchmarks.txt" 2>&1
   tail -40 "$out/benchmarks.txt"
 }

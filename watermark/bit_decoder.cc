@@ -1,9 +1,13 @@
-// LoadBitDecoder: the CPU Decoder, or with the CUDA backend the CudaDecoder
-// read from the same weights file.
+// LoadBitDecoder: by the weights file's kind, the random-feature decoder
+// (CPU; it costs a few hundred multiply-adds a pixel, so a GPU run keeps it
+// on the host), or the HiDDeN decoder: the CPU Decoder, or with the CUDA
+// backend the CudaDecoder read from the same file.
 #include "watermark/bit_decoder.h"
 
 #include "gaussian/error.h"
 #include "watermark/decoder.h"
+#include "watermark/feature_decoder.h"
+#include "watermark/network_file.h"
 
 #ifdef WATERGS_WITH_CUDA
 #include "watermark/cuda/cuda_hidden.h"
@@ -13,6 +17,10 @@ namespace watergs {
 
 std::unique_ptr<BitDecoder> LoadBitDecoder(const std::string& path,
                                            Device device, int expected_bits) {
+  const NetworkFile file = ReadNetworkFile(path);
+  if (file.kind == kFeatureDecoderKind)
+    return std::make_unique<FeatureDecoder>(
+        FeatureNetFromFile(path, file, expected_bits));
   if (device == Device::kCpu) {
     return std::make_unique<Decoder>(Decoder::Load(path, expected_bits));
   }

@@ -42,7 +42,7 @@ namespace watergs {
 namespace {
 
 const std::string kShippedDecoder =
-    std::string(WATERGS_SOURCE_DIR) + "/watermark/models/decoder_48.bin";
+    std::string(WATERGS_SOURCE_DIR) + "/watermark/models/hidden_48.bin";
 
 double MaxAbs(const std::vector<float>& values) {
   double scale = 0.0;

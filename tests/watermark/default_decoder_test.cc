@@ -1,0 +1,84 @@
+// The default decoder shipped in watermark/models/decoder_48.bin (a
+// random-feature decoder made by `watergs make_decoder`, README "Decoder"):
+// it is small, reads 48 bits, is steerable on held-out photos
+// (tests/data/photos) at a small pixel change, finds no message in unmarked
+// crops of them, and a corrupted or truncated copy is refused.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <random>
+
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "watermark/bit_decoder.h"
+#include "watermark/decoder_training.h"
+#include "watermark/feature_decoder.h"
+#include "watermark/feature_decoder_calibration.h"
+#include "watermark/network_file.h"
+
+namespace watergs {
+namespace {
+
+const std::string kModel =
+    std::string(WATERGS_SOURCE_DIR) + "/watermark/models/decoder_48.bin";
+const std::string kPhotos =
+    std::string(WATERGS_SOURCE_DIR) + "/tests/data/photos";
+
+TEST(DefaultDecoderTest, IsASmallFortyEightBitFeatureDecoder) {
+  EXPECT_LE(std::filesystem::file_size(kModel), 5u << 20);
+  const NetworkFile file = ReadNetworkFile(kModel);
+  EXPECT_EQ(file.kind, kFeatureDecoderKind);
+  std::unique_ptr<BitDecoder> decoder = LoadBitDecoder(kModel, Device::kCpu, 48);
+  EXPECT_EQ(decoder->NumBits(), 48);
+}
+
+// Every bit of a random message set on 128 px held-out crops by pixel-space
+// Adam, above 25 dB; no unmarked crop passes the verdict for that message.
+TEST(DefaultDecoderTest, SteerableAndBalancedOnHeldOutPhotos) {
+  std::unique_ptr<BitDecoder> decoder = LoadBitDecoder(kModel, Device::kCpu, 48);
+  const std::vector<cv::Mat> photos = LoadPhotoFolder(kPhotos);
+  const std::vector<ImageRGB> crops = SamplePhotoCrops(photos, 128, 400, 17);
+  std::mt19937 rng(29);
+  Bits target(48);
+  for (auto& b : target) b = rng() & 1;
+  for (int i = 0; i < 3; ++i) {
+    const SteerResult r =
+        SteerPixels(*decoder, crops[i * 50], target, 400, 0.002, 0.5);
+    EXPECT_EQ(r.bit_errors, 0) << i;
+    EXPECT_GT(r.psnr, 25.0) << i;
+  }
+  const DecoderBalance balance = MeasureBalance(*decoder, crops, target);
+  EXPECT_EQ(balance.false_positives, 0);
+  EXPECT_GT(balance.ones_fraction, 0.4);
+  EXPECT_LT(balance.ones_fraction, 0.6);
+  // (Bit correlations are not asserted here: 400 crops of 8 photos measure
+  // mostly which photo a crop came from; README "Decoder" gives the corpus
+  // figure over 1,000 crops of 16 held-out photos.)
+}
+
+TEST(DefaultDecoderTest, RefusesCorruptedAndTruncatedCopies) {
+  const std::vector<uint8_t> bytes = ReadFileBytes(kModel);
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("watergs_default_decoder_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / "decoder_48.bin").string();
+  auto expect_refused = [&](const std::vector<uint8_t>& copy,
+                            const char* what) {
+    AtomicWriteFile(path, std::string(copy.begin(), copy.end()));
+    try {
+      LoadBitDecoder(path, Device::kCpu);
+      ADD_FAILURE() << what << " copy was accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0u) << e.what();
+    }
+  };
+  std::vector<uint8_t> flipped = bytes;
+  flipped[bytes.size() / 2] ^= 0x01;
+  expect_refused(flipped, "bit-flipped");
+  expect_refused(std::vector<uint8_t>(bytes.begin(), bytes.end() - 100),
+                 "truncated");
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace watergs

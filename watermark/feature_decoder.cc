@@ -1,0 +1,243 @@
+// The steerable random-feature decoder (see feature_decoder.h).
+#include "watermark/feature_decoder.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "gaussian/error.h"
+#include "watermark/network_image.h"
+
+namespace watergs {
+namespace {
+
+constexpr int64_t kDesignVersion = 1;
+
+FeatureDecoderConfig CheckedConfig(const FeatureDecoderConfig& config) {
+  if (config.num_bits < 1 || config.num_bits > 1024)
+    Fail("feature decoder: num_bits " + std::to_string(config.num_bits) +
+         " outside [1, 1024]");
+  if (config.channels < 1 || config.channels > 4096)
+    Fail("feature decoder: channels " + std::to_string(config.channels) +
+         " outside [1, 4096]");
+  if (config.pool < 1 || config.pool > 64)
+    Fail("feature decoder: pool " + std::to_string(config.pool) +
+         " outside [1, 64]");
+  if (config.kernel < 1 || config.kernel > 15 || config.kernel % 2 == 0)
+    Fail("feature decoder: kernel " + std::to_string(config.kernel) +
+         " is not odd in [1, 15]");
+  return config;
+}
+
+// 3 -> C convolution with PyTorch's default initialisation, from `seed`.
+Conv2d RandomConv(const FeatureDecoderConfig& config, uint32_t seed) {
+  std::mt19937 rng(seed);
+  return Conv2d("conv", 3, config.channels, config.kernel, &rng);
+}
+
+// C -> L linear layer, all zero (calibration sets it).
+Linear ZeroLinear(const FeatureDecoderConfig& config) {
+  std::mt19937 rng(0);
+  Linear linear("linear", config.channels, config.num_bits, &rng);
+  std::fill(linear.weight.value.begin(), linear.weight.value.end(), 0.f);
+  std::fill(linear.bias.value.begin(), linear.bias.value.end(), 0.f);
+  return linear;
+}
+
+}  // namespace
+
+void AvgPoolForward(const Tensor& x, int p, Tensor* y) {
+  const int h = x.h / p, w = x.w / p;
+  y->Resize(x.n, x.c, h, w);
+  const float scale = 1.f / float(p * p);
+  for (int b = 0; b < x.n; ++b) {
+    for (int c = 0; c < x.c; ++c) {
+      const float* in = x.Plane(b, c);
+      float* out = y->Plane(b, c);
+      std::fill(out, out + size_t(h) * w, 0.f);
+      for (int r = 0; r < h * p; ++r) {
+        const float* row = in + size_t(r) * x.w;
+        float* out_row = out + size_t(r / p) * w;
+        for (int col = 0; col < w * p; ++col) out_row[col / p] += row[col];
+      }
+      for (size_t i = 0; i < size_t(h) * w; ++i) out[i] *= scale;
+    }
+  }
+}
+
+void AvgPoolBackward(const Tensor& dy, int p, const Tensor& like, Tensor* dx) {
+  dx->ResizeLike(like);
+  dx->Fill(0.f);
+  const float scale = 1.f / float(p * p);
+  for (int b = 0; b < like.n; ++b) {
+    for (int c = 0; c < like.c; ++c) {
+      const float* g = dy.Plane(b, c);
+      float* out = dx->Plane(b, c);
+      for (int r = 0; r < dy.h * p; ++r) {
+        const float* g_row = g + size_t(r / p) * dy.w;
+        float* row = out + size_t(r) * like.w;
+        for (int col = 0; col < dy.w * p; ++col)
+          row[col] = g_row[col / p] * scale;
+      }
+    }
+  }
+}
+
+FeatureNet::FeatureNet(const FeatureDecoderConfig& config, uint32_t seed)
+    : conv(RandomConv(CheckedConfig(config), seed)),
+      linear(ZeroLinear(config)),
+      config_(config) {}
+
+double FeatureNet::MacsPerPixel() const {
+  const double conv_macs = double(conv.MacsPerPixel()) /
+                           double(config_.pool * config_.pool);
+  return 1.0 + conv_macs;  // pooling: one add per input value and pixel
+}
+
+const Tensor& FeatureNet::Forward(const Tensor& image) {
+  if (image.c != 3 || image.h < config_.pool || image.w < config_.pool)
+    Fail("feature decoder: input of " + std::to_string(image.w) + "x" +
+         std::to_string(image.h) + " pixels (" + std::to_string(image.c) +
+         " channels) is smaller than its " + std::to_string(config_.pool) +
+         "x" + std::to_string(config_.pool) + " pooling");
+  image_ = &image;
+  if (config_.pool > 1) {
+    AvgPoolForward(image, config_.pool, &pooled_);
+    conv.Forward(pooled_, &conv_out_);
+  } else {
+    conv.Forward(image, &conv_out_);
+  }
+  relu_ = conv_out_;
+  ReluForward(&relu_);
+  GlobalAvgPoolForward(relu_, &features_);
+  linear.Forward(features_, &logits_);
+  return logits_;
+}
+
+void FeatureNet::Backward(const Tensor& dlogits, Tensor* dimage) {
+  if (!image_) Fail("feature decoder: Backward before Forward");
+  linear.Backward(features_, dlogits, &dfeatures_, false);
+  GlobalAvgPoolBackward(dfeatures_, relu_, &drelu_);
+  ReluBackward(relu_, &drelu_);
+  if (config_.pool > 1) {
+    conv.Backward(pooled_, drelu_, &dpooled_, false);
+    AvgPoolBackward(dpooled_, config_.pool, *image_, dimage);
+  } else {
+    conv.Backward(*image_, drelu_, dimage, false);
+  }
+}
+
+NetworkFile FeatureNetToFile(FeatureNet& net) {
+  NetworkFile file;
+  file.kind = kFeatureDecoderKind;
+  const FeatureDecoderConfig& config = net.config();
+  file.meta = {{"num_bits", config.num_bits}, {"channels", config.channels},
+               {"pool", config.pool},         {"kernel", config.kernel},
+               {"input_range", 1},            {"design", kDesignVersion}};
+  for (const Parameter* p : {&net.conv.weight, &net.conv.bias,
+                             &net.linear.weight, &net.linear.bias})
+    file.tensors.push_back(TensorRecord{p->name, p->shape, p->value});
+  return file;
+}
+
+std::unique_ptr<FeatureNet> FeatureNetFromFile(const std::string& path,
+                                               const NetworkFile& file,
+                                               int expected_bits) {
+  if (file.kind != kFeatureDecoderKind)
+    FailAt(path, "holds a '" + file.kind + "', not a feature decoder");
+  if (file.Meta("design", path) != kDesignVersion)
+    FailAt(path, "feature decoder design " +
+                     std::to_string(file.Meta("design", path)) +
+                     " is not supported (this build reads design " +
+                     std::to_string(kDesignVersion) + ")");
+  if (file.Meta("input_range", path) != 1)
+    FailAt(path, "unsupported input_range " +
+                     std::to_string(file.Meta("input_range", path)));
+  FeatureDecoderConfig config;
+  config.num_bits = int(file.Meta("num_bits", path));
+  config.channels = int(file.Meta("channels", path));
+  config.pool = int(file.Meta("pool", path));
+  config.kernel = int(file.Meta("kernel", path));
+  if (expected_bits > 0 && config.num_bits != expected_bits)
+    FailAt(path, "decoder reads " + std::to_string(config.num_bits) +
+                     " bits, expected " + std::to_string(expected_bits));
+  std::unique_ptr<FeatureNet> net;
+  try {
+    net = std::make_unique<FeatureNet>(config, 0);
+  } catch (const Error& e) {
+    FailAt(path, e.what());
+  }
+  std::vector<Parameter*> params = {&net->conv.weight, &net->conv.bias,
+                                    &net->linear.weight, &net->linear.bias};
+  if (file.tensors.size() != params.size())
+    FailAt(path, "holds " + std::to_string(file.tensors.size()) +
+                     " tensors, a feature decoder has " +
+                     std::to_string(params.size()));
+  for (Parameter* p : params) {
+    const TensorRecord* record = file.Find(p->name);
+    if (!record) FailAt(path, "missing tensor " + p->name);
+    if (record->shape != p->shape)
+      FailAt(path, "tensor " + p->name + " has the wrong shape");
+    for (float v : record->values)
+      if (!std::isfinite(v))
+        FailAt(path, "tensor " + p->name + " holds NaN or Inf");
+    p->value = record->values;
+  }
+  return net;
+}
+
+std::unique_ptr<FeatureDecoder> FeatureDecoder::Load(const std::string& path,
+                                                     int expected_bits) {
+  return std::make_unique<FeatureDecoder>(
+      FeatureNetFromFile(path, ReadNetworkFile(path), expected_bits));
+}
+
+FeatureDecoder::FeatureDecoder(std::unique_ptr<FeatureNet> net)
+    : net_(std::move(net)) {}
+
+int FeatureDecoder::NumBits() const { return net_->config().num_bits; }
+
+void FeatureDecoder::ForwardIfNeeded(const ImageRGB& image) {
+  const size_t count = image.data.size();
+  if (image.width <= 0 || image.height <= 0 ||
+      count != size_t(image.width) * image.height * 3)
+    Fail("decoder: image of " + std::to_string(image.width) + "x" +
+         std::to_string(image.height) + " with " + std::to_string(count) +
+         " values");
+  if (has_forward_ && input_.w == image.width && input_.h == image.height &&
+      std::memcmp(cached_pixels_.data(), image.data.data(),
+                  count * sizeof(float)) == 0)
+    return;
+  cached_pixels_.assign(image.data.begin(), image.data.end());
+  ImageToTensor(image, false, &input_);
+  const Tensor& logits = net_->Forward(input_);
+  logits_.assign(logits.data.begin(), logits.data.end());
+  has_forward_ = true;
+}
+
+std::vector<float> FeatureDecoder::Logits(const ImageRGB& image) {
+  ForwardIfNeeded(image);
+  return logits_;
+}
+
+void FeatureDecoder::InputGradient(const ImageRGB& image,
+                                   const std::vector<float>& dlogits,
+                                   ImageRGB* dimage) {
+  if (int(dlogits.size()) != NumBits())
+    Fail("decoder: " + std::to_string(dlogits.size()) +
+         " logit gradients for a " + std::to_string(NumBits()) +
+         "-bit decoder");
+  ForwardIfNeeded(image);
+  dlogits_.Resize(1, NumBits(), 1, 1);
+  std::copy(dlogits.begin(), dlogits.end(), dlogits_.data.begin());
+  net_->Backward(dlogits_, &dinput_);
+  if (dimage->width != image.width || dimage->height != image.height ||
+      dimage->data.size() != image.data.size())
+    *dimage = ImageRGB(image.width, image.height);
+  const size_t hw = dinput_.PlaneSize();
+  // d/d(image) = 2 d/d(input) since input = 2 image - 1.
+  for (size_t p = 0; p < hw; ++p)
+    for (int c = 0; c < 3; ++c)
+      dimage->data[p * 3 + c] = 2.f * dinput_.data[c * hw + p];
+}
+
+}  // namespace watergs

@@ -1,0 +1,123 @@
+// The steerable random-feature decoder: WATER-GS's default universal decoder.
+//
+// WATER-GS keeps only the decoder of a watermarking network and steers the
+// 3DGS scene into it, so the decoder needs no encoder; it must be steerable
+// (a small image change sets any message), robust, and balanced (fair,
+// nearly uncorrelated bits on unmarked images, so the p-value holds). A
+// shallow, wide network of random features, whitened on natural photos, is
+// all three without training (docs/decoder_design.md):
+//
+//   D(x) = A . GAP(ReLU(conv_k(avgpool_p(2x - 1)))) + b
+//
+// with the convolution's outputs standardised on photos (BatchNorm folded
+// in) and A = s P Sigma^-1/2, b = -A mu: mu, Sigma the mean and covariance of
+// the pooled features over photo crops, P a random orthogonal L x C
+// projection, s the logit scale. On the calibration crops the L logits are
+// then zero-mean, uncorrelated and of standard deviation s.
+//
+// Weights file: the network container (network_file.h), kind
+// "feature-decoder", meta num_bits, channels, pool, kernel, input_range (1:
+// images mapped to [-1, 1]), design (1); tensors conv.weight [C,3,k,k],
+// conv.bias [C], linear.weight [L,C], linear.bias [L].
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gaussian/image.h"
+#include "watermark/bit_decoder.h"
+#include "watermark/network_file.h"
+#include "watermark/nn_layers.h"
+
+namespace watergs {
+
+inline constexpr char kFeatureDecoderKind[] = "feature-decoder";
+
+struct FeatureDecoderConfig {
+  // Message length L.
+  int num_bits = 48;
+  // Width C of the random feature layer.
+  int channels = 256;
+  // Side of the average pooling applied to the image first (1: none).
+  int pool = 4;
+  // Side of the convolution's kernel (odd).
+  int kernel = 3;
+};
+
+// The network: avgpool -> conv -> ReLU -> global average pool -> linear.
+class FeatureNet {
+ public:
+  // Random convolution (PyTorch's default initialisation) and a zero linear
+  // layer; calibration (feature_decoder_calibration.h) sets the rest.
+  FeatureNet(const FeatureDecoderConfig& config, uint32_t seed);
+
+  // image [N,3,H,W] in [-1,1], H and W >= pool -> logits [N,L,1,1]. Keeps
+  // the activations for Backward.
+  const Tensor& Forward(const Tensor& image);
+  // Pooled features [N,C,1,1] of the last Forward (before the linear layer).
+  const Tensor& features() const { return features_; }
+  // Conv outputs [N,C,h,w] of the last Forward, before the ReLU.
+  const Tensor& conv_output() const { return conv_out_; }
+  // dlogits [N,L,1,1] -> dimage [N,3,H,W] of the last Forward's image.
+  void Backward(const Tensor& dlogits, Tensor* dimage);
+
+  const FeatureDecoderConfig& config() const { return config_; }
+  // Multiply-adds of one forward pass per input pixel.
+  double MacsPerPixel() const;
+
+  Conv2d conv;
+  Linear linear;
+
+ private:
+  FeatureDecoderConfig config_;
+  // Input of the last Forward (owned by the caller).
+  const Tensor* image_ = nullptr;
+  // Activations of the last Forward and gradient scratch.
+  Tensor pooled_, conv_out_, relu_, features_, logits_, dfeatures_, drelu_,
+      dpooled_;
+};
+
+// image [N,C,H,W] -> [N,C,H/p,W/p]: the mean of each p x p block (rows and
+// columns beyond a multiple of p are dropped).
+void AvgPoolForward(const Tensor& x, int p, Tensor* y);
+// dy [N,C,H/p,W/p] -> dx [N,C,H,W] (H, W from `like`): each block's pixels
+// get dy / p^2, the dropped border 0.
+void AvgPoolBackward(const Tensor& dy, int p, const Tensor& like, Tensor* dx);
+
+// The network as a weights file, and back; `path` names the file in errors.
+// Refuses another kind, missing/extra/misshapen tensors, non-finite weights,
+// unsupported architecture values and num_bits != expected_bits (if > 0).
+NetworkFile FeatureNetToFile(FeatureNet& net);
+std::unique_ptr<FeatureNet> FeatureNetFromFile(const std::string& path,
+                                               const NetworkFile& file,
+                                               int expected_bits = 0);
+
+// The CPU BitDecoder of a FeatureNet.
+class FeatureDecoder : public BitDecoder {
+ public:
+  // Loads a weights file with FeatureNetFromFile's checks.
+  static std::unique_ptr<FeatureDecoder> Load(const std::string& path,
+                                              int expected_bits = 0);
+  explicit FeatureDecoder(std::unique_ptr<FeatureNet> net);
+
+  int NumBits() const override;
+  // image (at least pool x pool pixels) -> L logits.
+  std::vector<float> Logits(const ImageRGB& image) override;
+  // Re-runs the forward pass only when `image` differs from the last one.
+  void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
+                     ImageRGB* dimage) override;
+  FeatureNet& net() { return *net_; }
+
+ private:
+  void ForwardIfNeeded(const ImageRGB& image);
+
+  std::unique_ptr<FeatureNet> net_;
+  Tensor input_, dlogits_, dinput_;
+  std::vector<float> cached_pixels_, logits_;
+  bool has_forward_ = false;
+};
+
+}  // namespace watergs
