@@ -13,6 +13,7 @@
 #include "gaussian/file_util.h"
 #include "gaussian/progress.h"
 #include "gaussian/projection.h"
+#include "watermark/extractor.h"
 #include "watermark/nn_layers.h"
 #include "watermark/tensor.h"
 
@@ -192,6 +193,9 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
                    [](bool t) { return t; })) {
     Fail("embed: the mask leaves no trainable parameter group");
   }
+  if (!(options_.free_view_fraction >= 0 && options_.free_view_fraction <= 1))
+    Fail("embed: free_view_fraction must be in [0, 1]");
+  if (options_.free_view_fraction > 0) input_model_ = model_;
   targets_.assign(message_.begin(), message_.end());
   if (!options_.distortions.empty()) {
     sampler_ = std::make_unique<DistortionSampler>(options_.distortions);
@@ -262,6 +266,8 @@ std::string Embedder::RunSignature() const {
   for (const auto& spec : options_.distortions) layers += ToString(spec) + ",";
   j["distortions"] = layers;
   j["crop_size"] = options_.crop_size;
+  if (options_.free_view_fraction > 0)
+    j["free_view_fraction"] = options_.free_view_fraction;
   j["densify"] = options_.densify;
   j["message"] = BitsToString(message_);
   j["train_views"] = train_views_.size();
@@ -270,6 +276,22 @@ std::string Embedder::RunSignature() const {
 
 size_t Embedder::NextView() {
   return train_views_[rng_() % train_views_.size()];
+}
+
+void Embedder::PlanFreeView(IterationPlan* plan) {
+  const size_t other = NextView();
+  const double t = std::uniform_real_distribution<double>(0, 1)(rng_);
+  plan->camera =
+      InterpolateCameras(plan->camera, views_.Camera(other), t);
+  RenderOptions options;
+  options.background = options_.background;
+  auto target = std::make_shared<ImageRGB>();
+  std::unique_ptr<RenderContext> context;
+  rasterizer_->Forward(input_model_, plan->camera, options, target.get(),
+                       &context);
+  // Renders may leave [0, 1]; a photo cannot.
+  for (float& v : target->data) v = std::clamp(v, 0.f, 1.f);
+  plan->truth = std::move(target);
 }
 
 PixelRect RandomCrop(int crop_size, int width, int height,
@@ -295,7 +317,13 @@ EmbedStepStats Embedder::Step() {
   IterationPlan plan;
   plan.view = NextView();
   plan.camera = views_.Camera(plan.view);
-  plan.truth = views_.Image(plan.view);
+  if (options_.free_view_fraction > 0 &&
+      std::uniform_real_distribution<double>(0, 1)(rng_) <
+          options_.free_view_fraction) {
+    PlanFreeView(&plan);
+  } else {
+    plan.truth = views_.Image(plan.view);
+  }
   plan.crop = SampleRect(plan.camera.width, plan.camera.height);
   plan.layer = sampler_ ? &sampler_->Sample(rng_) : nullptr;
   stats.distortion = plan.layer ? ToString(plan.layer->spec()) : "none";

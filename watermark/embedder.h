@@ -51,6 +51,11 @@ struct EmbedOptions {
   // Render the whole frame for the image loss and give the decoder only the
   // crop (instead of rendering just the crop for both terms).
   bool full_frame_image_loss = false;
+  // Fraction of iterations rendered from a free viewpoint (between two
+  // training cameras, as extract --num_views samples them) with the input
+  // model's render there as the image target: the message then holds in
+  // views no training camera saw, at the input model's fidelity there.
+  double free_view_fraction = 0;
   // BER over the check views is evaluated every check_every iterations;
   // fine-tuning stops after `patience` consecutive checks at BER 0 (0 = never
   // stop early).
@@ -170,6 +175,9 @@ class Embedder {
 
   std::string RunSignature() const;
   size_t NextView();
+  // A free viewpoint between two training cameras and the input model's
+  // render there (the image target).
+  void PlanFreeView(IterationPlan* plan);
   PixelRect SampleRect(int width, int height);
   // The iteration's loss, backward, density control and Adam on the host
   // model, or on the device-resident one.
@@ -187,6 +195,8 @@ class Embedder {
   const TrainingViews& views_;
   std::vector<size_t> train_views_;
   GaussianModel model_;
+  // The input model, kept when free-view iterations render targets from it.
+  GaussianModel input_model_;
   double scene_extent_;
   BitDecoder* decoder_;
   Bits message_;

@@ -10,6 +10,16 @@
 
 namespace watergs {
 
+RenderCamera InterpolateCameras(const RenderCamera& a, const RenderCamera& b,
+                                double t) {
+  RenderCamera cam = a;
+  const Eigen::Quaterniond qa(a.R), qb(b.R);
+  cam.R = qa.slerp(t, qb).normalized().toRotationMatrix();
+  const Eigen::Vector3d center = (1 - t) * a.Center() + t * b.Center();
+  cam.t = -cam.R * center;
+  return cam;
+}
+
 std::vector<RenderCamera> SampleFreeViewpoints(const TrainingViews& views,
                                                int n, uint64_t seed) {
   if (views.NumViews() == 0) Fail("extract: no cameras to sample around");
@@ -19,13 +29,7 @@ std::vector<RenderCamera> SampleFreeViewpoints(const TrainingViews& views,
   for (int k = 0; k < n; ++k) {
     const RenderCamera a = views.Camera(rng() % views.NumViews());
     const RenderCamera b = views.Camera(rng() % views.NumViews());
-    const double t = uniform(rng);
-    RenderCamera cam = a;
-    const Eigen::Quaterniond qa(a.R), qb(b.R);
-    cam.R = qa.slerp(t, qb).normalized().toRotationMatrix();
-    const Eigen::Vector3d center = (1 - t) * a.Center() + t * b.Center();
-    cam.t = -cam.R * center;
-    out.push_back(cam);
+    out.push_back(InterpolateCameras(a, b, uniform(rng)));
   }
   return out;
 }

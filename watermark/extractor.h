@@ -51,6 +51,11 @@ struct ExtractionResult {
   VerificationThresholds thresholds;
 };
 
+// The camera a fraction t of the way from a to b: position linear,
+// orientation slerp, a's intrinsics.
+RenderCamera InterpolateCameras(const RenderCamera& a, const RenderCamera& b,
+                                double t);
+
 // `n` viewpoints between the cameras of `views`: each interpolates position
 // (linearly) and orientation (slerp) between two random cameras at a random
 // fraction, keeping the first one's intrinsics. Deterministic for a seed.

@@ -39,6 +39,7 @@ struct EmbedArgs {
   std::string distortions = "identity,gn:0.01,dropout:0.1,crop:0.1";
   int crop_size = 128;
   bool full_frame_loss = false;
+  double free_view_fraction = 0;
   int patience = 2;
   int check_views = 4;
   int64_t check_every = 200;
@@ -64,6 +65,8 @@ void Validate(const EmbedArgs& a) {
     Fail("--patience, --check_views must be >= 0, --check_every >= 1");
   }
   if (a.densify != "on" && a.densify != "off") Fail("--densify: on or off");
+  if (!(a.free_view_fraction >= 0 && a.free_view_fraction <= 1))
+    Fail("--free_view_fraction must be in [0, 1]");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
 }
 
@@ -128,6 +131,10 @@ int RunEmbed(int argc, char** argv) {
              "Side of the random crop rendered per iteration (0 = frames)");
   parser.AddFlag("full_frame_loss", &a.full_frame_loss,
                  "Render whole frames for the image loss (decoder on crop)");
+  parser.Add("free_view_fraction", &a.free_view_fraction,
+             "Fraction of iterations rendered between two training cameras, "
+             "with the input model's render as the image target (the message "
+             "then holds in novel views)");
   parser.Add("patience", &a.patience,
              "Stop after this many checks at BER 0 (0 = never)");
   parser.Add("check_views", &a.check_views, "Views decoded at each check");
@@ -160,6 +167,7 @@ int RunEmbed(int argc, char** argv) {
   }
   options.crop_size = a.crop_size;
   options.full_frame_image_loss = a.full_frame_loss;
+  options.free_view_fraction = a.free_view_fraction;
   options.patience = a.patience;
   options.check_every = a.check_every;
   options.densify = a.densify == "on";
