@@ -200,12 +200,18 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   if (!options_.distortions.empty()) {
     sampler_ = std::make_unique<DistortionSampler>(options_.distortions);
   }
-  // Density control changes every group of new Gaussians, so a partial mask
-  // (frozen groups bit-identical) runs without it.
+  // Density control sets every group of the Gaussians it adds (and prunes
+  // frozen ones), which breaks the promise of a partial mask that frozen
+  // groups stay bit-identical: refused rather than silently turned off.
   const bool all_trainable =
       std::all_of(options_.trainable.begin(), options_.trainable.end(),
                   [](bool t) { return t; });
-  if (!all_trainable) options_.densify = false;
+  if (options_.densify && !all_trainable) {
+    Fail(
+        "embed: density control needs every parameter group trainable (a "
+        "partial mask keeps the frozen groups bit-identical); turn density "
+        "control off");
+  }
   density_options_ = options_.density;
   density_options_.seed = options_.seed ^ 0x9e3779b97f4a7c15ull;
   if (options_.densify) {

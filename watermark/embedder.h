@@ -63,8 +63,9 @@ struct EmbedOptions {
   int patience = 2;
   // Views (indices into the source) decoded at each check (whole frames).
   std::vector<size_t> check_views;
-  // Adaptive density control during fine-tuning (as in training); ignored
-  // (off) when a group is frozen, since new Gaussians change every group.
+  // Adaptive density control during fine-tuning (as in training). Needs
+  // every group trainable: new Gaussians change every group, so the
+  // constructor refuses it with a partial mask.
   bool densify = true;
   DensityOptions density;
   // Optimiser rates; positions decay from position_lr_init to _final over

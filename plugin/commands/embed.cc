@@ -3,6 +3,7 @@
 // renders (WATER-GS), and writes the watermarked PLY in the input's layout.
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -43,7 +44,8 @@ struct EmbedArgs {
   int patience = 2;
   int check_views = 4;
   int64_t check_every = 200;
-  std::string densify = "on";
+  // "auto": on with every group trainable, off with a partial mask.
+  std::string densify = "auto";
   std::string background = "0,0,0";
   int64_t seed = 0;
   int num_threads = 0;
@@ -64,7 +66,9 @@ void Validate(const EmbedArgs& a) {
   if (a.patience < 0 || a.check_views < 0 || a.check_every < 1) {
     Fail("--patience, --check_views must be >= 0, --check_every >= 1");
   }
-  if (a.densify != "on" && a.densify != "off") Fail("--densify: on or off");
+  if (a.densify != "on" && a.densify != "off" && a.densify != "auto") {
+    Fail("--densify: on, off or auto");
+  }
   if (!(a.free_view_fraction >= 0 && a.free_view_fraction <= 1))
     Fail("--free_view_fraction must be in [0, 1]");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
@@ -124,7 +128,7 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("beta", &a.beta, "Weight of D-SSIM in the image loss");
   parser.Add("mask", &a.mask,
              "ALL or trainable groups: xyz,f_dc,f_rest,opacity,scaling,"
-             "rotation (a partial mask turns density control off)");
+             "rotation (a partial mask needs density control off)");
   parser.Add("distortions", &a.distortions,
              "3D distortion layers sampled per iteration, or none");
   parser.Add("crop_size", &a.crop_size,
@@ -139,7 +143,9 @@ int RunEmbed(int argc, char** argv) {
              "Stop after this many checks at BER 0 (0 = never)");
   parser.Add("check_views", &a.check_views, "Views decoded at each check");
   parser.Add("check_every", &a.check_every, "Iterations between checks");
-  parser.Add("densify", &a.densify, "Adaptive density control: on or off");
+  parser.Add("densify", &a.densify,
+             "Adaptive density control: on, off or auto (on with --mask "
+             "ALL, off with a partial mask)");
   parser.Add("background", &a.background, "r,g,b, black or white");
   parser.Add("seed", &a.seed, "Random seed");
   parser.Add("num_threads", &a.num_threads, "Threads (0 = all cores)");
@@ -170,7 +176,16 @@ int RunEmbed(int argc, char** argv) {
   options.free_view_fraction = a.free_view_fraction;
   options.patience = a.patience;
   options.check_every = a.check_every;
-  options.densify = a.densify == "on";
+  const bool all_trainable =
+      std::all_of(options.trainable.begin(), options.trainable.end(),
+                  [](bool t) { return t; });
+  options.densify = a.densify == "auto" ? all_trainable : a.densify == "on";
+  // Checked here too so that the refusal comes before the workspace loads.
+  if (options.densify && !all_trainable) {
+    Fail(
+        "--densify on needs --mask ALL: density control changes every "
+        "parameter group, which a partial mask keeps bit-identical");
+  }
   options.background = ParseBackground(a.background);
   options.seed = static_cast<uint64_t>(a.seed);
   options.checkpoint_path = checkpoint_path;
@@ -192,7 +207,7 @@ int RunEmbed(int argc, char** argv) {
       "distortions %s, crop %d, density control %s, %d threads\n",
       ply.model.size(), train_views.size(), first.width, first.height,
       decoder->NumBits(), BitsToHex(message).c_str(), a.distortions.c_str(),
-      a.crop_size, a.densify.c_str(), omp_get_max_threads());
+      a.crop_size, options.densify ? "on" : "off", omp_get_max_threads());
 
   const GaussianModel raw = ply.model;
   Embedder embedder(options, views, train_views, std::move(ply.model), extent,

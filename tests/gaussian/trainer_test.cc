@@ -6,6 +6,7 @@
 #include "gaussian/trainer.h"
 
 #include <gtest/gtest.h>
+#include <omp.h>
 #include <unistd.h>
 
 #include <Eigen/Geometry>
@@ -15,6 +16,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
 
@@ -24,6 +26,7 @@
 #include "gaussian/error.h"
 #include "gaussian/projection.h"
 #include "tests/common/backend_parity.h"
+#include "tests/common/bit_identical.h"
 #include "tests/common/cuda_test.h"
 #include "tests/common/look_at.h"
 
@@ -247,23 +250,15 @@ std::unique_ptr<DeviceTrainingStep> MakeEmulatedStep(GaussianModel* model,
   return std::make_unique<EmulatedDeviceStep>(model, adam);
 }
 
+// Every parameter group and every optimiser moment, byte for byte.
 void ExpectSameState(Trainer& a, Trainer& b) {
-  ASSERT_EQ(a.model().size(), b.model().size());
-  EXPECT_EQ(a.model().means, b.model().means);
-  EXPECT_EQ(a.model().log_scales, b.model().log_scales);
-  EXPECT_EQ(a.model().quats, b.model().quats);
-  EXPECT_EQ(a.model().opacity_logits, b.model().opacity_logits);
-  EXPECT_EQ(a.model().sh_dc, b.model().sh_dc);
-  EXPECT_EQ(a.model().sh_rest, b.model().sh_rest);
+  testing::ExpectBitIdenticalModels(a.model(), b.model());
   for (int g = 0; g < kNumParamGroups; ++g) {
     const ParamGroup group = static_cast<ParamGroup>(g);
-    EXPECT_EQ(a.adam().state(group).exp_avg, b.adam().state(group).exp_avg)
-        << GroupName(group);
-    EXPECT_EQ(a.adam().state(group).exp_avg_sq,
-              b.adam().state(group).exp_avg_sq)
-        << GroupName(group);
-    EXPECT_EQ(a.adam().state(group).step, b.adam().state(group).step);
+    testing::ExpectSameAdamGroup(a.adam().state(group), b.adam().state(group),
+                                 GroupName(group));
   }
+  EXPECT_EQ(a.adam().rejected_total(), b.adam().rejected_total());
 }
 
 TEST(Trainer, LossDecreases) {
@@ -334,16 +329,7 @@ TEST(Trainer, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   resumed.Resume(o.checkpoint_path);
   EXPECT_EQ(resumed.iteration(), 20);
   resumed.Run();
-  const GaussianModel& a = full.model();
-  const GaussianModel& b = resumed.model();
-  ASSERT_EQ(a.size(), b.size());
-  EXPECT_EQ(0, std::memcmp(a.means.data(), b.means.data(),
-                           a.means.size() * sizeof(float)));
-  EXPECT_EQ(a.sh_rest, b.sh_rest);
-  EXPECT_EQ(a.opacity_logits, b.opacity_logits);
-  EXPECT_EQ(a.log_scales, b.log_scales);
-  EXPECT_EQ(full.adam().state(ParamGroup::kXyz).exp_avg_sq,
-            resumed.adam().state(ParamGroup::kXyz).exp_avg_sq);
+  ExpectSameState(full, resumed);
   // The log has one line per iteration, 1..40, with the required fields,
   // and the same losses as the uninterrupted run.
   std::ifstream log(o.log_path), full_log(dir + "/full.jsonl");
@@ -375,10 +361,7 @@ TEST(Trainer, HalfMomentRunResumesBitIdentically) {
   Trainer resumed(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
   resumed.Resume(o.checkpoint_path);
   resumed.Run();
-  EXPECT_EQ(full.model().sh_rest, resumed.model().sh_rest);
-  EXPECT_EQ(full.model().means, resumed.model().means);
-  EXPECT_EQ(full.adam().state(ParamGroup::kFRest).exp_avg_sq_h,
-            resumed.adam().state(ParamGroup::kFRest).exp_avg_sq_h);
+  ExpectSameState(full, resumed);
   EXPECT_FALSE(full.adam().state(ParamGroup::kFRest).exp_avg_sq_h.empty());
   // A float-moment run refuses the half-moment checkpoint.
   o.adam.half_moments = false;
@@ -415,6 +398,70 @@ TEST(Trainer, HalfMomentStateFitsSixHundredBytesAtShDegreeThree) {
               params + moments + grads + 16);  // density-control statistics
     if (half) {
       EXPECT_LE(trainer.StateBytesPerGaussian(), 600u);
+    }
+  }
+}
+
+// The README's claim that a run is the same for any thread count, float32
+// and bfloat16 moments alike: OpenMP splits the rasterizer's tiles, the
+// loss's row strips and Adam's blocks differently at 1 and 2 threads, so
+// every reduction must have a fixed order and the stochastic rounding of
+// bfloat16 moments must not follow the threads. Sizes chosen so that each
+// of those runs in parallel: 128x96 views (48 tiles; the loss goes parallel
+// from 32k values), SH degree 3 and 1,500 Gaussians (Adam goes parallel
+// from 32k values per group: here the SH coefficients, over 6 blocks of
+// 256 Gaussians); the compressed schedule densifies, resets opacities and
+// raises the SH degree within the run.
+TEST(Trainer, SameRunForAnyThreadCount) {
+  const GaussianModel ball = RandomBall(1500, 3, 0.05f);
+  GaussianModel init;
+  init.sh_degree = 3;
+  init.Resize(ball.size());
+  init.means = ball.means;
+  init.log_scales = ball.log_scales;
+  init.quats = ball.quats;
+  init.opacity_logits = ball.opacity_logits;
+  init.sh_dc = ball.sh_dc;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(-0.05f, 0.05f);
+  for (float& v : init.sh_rest) v = u(rng);
+  InMemoryViews views;
+  std::vector<size_t> train;
+  for (int v = 0; v < 6; ++v) {
+    const double a = 2 * M_PI * v / 6;
+    const RenderCamera cam = LookAtOrigin(
+        Eigen::Vector3d(3 * std::cos(a), 3 * std::sin(a), 0.5), 128, 96);
+    ImageRGB image;
+    MakeCpuRasterizer()->Forward(RandomBall(60, 1, 0.12f), cam, RenderOptions{},
+                                 &image, nullptr);
+    views.Add("view" + std::to_string(v), cam, image);
+    train.push_back(v);
+  }
+  const int saved_threads = omp_get_max_threads();
+  for (bool half : {false, true}) {
+    SCOPED_TRACE(half ? "bfloat16 moments" : "float32 moments");
+    TrainerOptions o = SmallRun(30);
+    o.adam.half_moments = half;
+    o.log_every = 1;
+    auto run = [&](int threads) {
+      omp_set_num_threads(threads);
+      auto trainer = std::make_unique<Trainer>(o, views, train, init, 3.3,
+                                               MakeCpuRasterizer());
+      trainer->Run();
+      omp_set_num_threads(saved_threads);
+      return trainer;
+    };
+    const std::unique_ptr<Trainer> one = run(1), two = run(2);
+    ASSERT_NE(one->model().size(), init.size());  // densification happened
+    EXPECT_EQ(one->active_sh_degree(), 3);
+    ExpectSameState(*one, *two);
+    // The logged losses too (the loss value is a reduction of its own).
+    ASSERT_EQ(one->log_lines().size(), two->log_lines().size());
+    for (size_t i = 0; i < one->log_lines().size(); ++i) {
+      auto a = nlohmann::json::parse(one->log_lines()[i]);
+      auto b = nlohmann::json::parse(two->log_lines()[i]);
+      a.erase("seconds"), b.erase("seconds");
+      EXPECT_EQ(a, b) << "log line " << i;
     }
   }
 }

@@ -72,6 +72,24 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
   EXPECT_EQ(out.model.sh_degree, 1);
   EXPECT_NE(out.model.sh_dc, in.model.sh_dc);
 
+  // A partial mask runs without density control unless asked (which is
+  // refused, below) and leaves the frozen groups as they were read.
+  const std::string masked = dir / "wm_masked.ply";
+  const auto partial =
+      RunCommand(base + " --message hex:a5c3 --output_path " + masked +
+                 " --iterations 4 --crop_size 24 --mask f_dc --check_every 2"
+                 " --num_threads 1");
+  ASSERT_EQ(partial.exit_code, 0) << partial.output;
+  EXPECT_NE(partial.output.find("density control off"), std::string::npos)
+      << partial.output;
+  const PlyData m = ReadPly(masked);
+  EXPECT_EQ(m.model.means, in.model.means);
+  EXPECT_EQ(m.model.log_scales, in.model.log_scales);
+  EXPECT_EQ(m.model.quats, in.model.quats);
+  EXPECT_EQ(m.model.opacity_logits, in.model.opacity_logits);
+  EXPECT_EQ(m.model.sh_rest, in.model.sh_rest);
+  EXPECT_NE(m.model.sh_dc, in.model.sh_dc);
+
   // Extraction: a verdict (any) is exit 0, with the JSON written.
   const std::string json = dir / "extract.json";
   const auto extract = RunCommand(
@@ -99,6 +117,15 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
       RunCommand(base + " --message bits:01 --mask xyz,colour --output_path " +
                  bad_out),
       "colour");
+  ExpectOneLineError(RunCommand(base +
+                                " --message hex:a5c3 --mask f_dc --densify on "
+                                "--output_path " +
+                                bad_out),
+                     "--densify on needs --mask ALL");
+  ExpectOneLineError(
+      RunCommand(base + " --message hex:a5c3 --densify maybe --output_path " +
+                 bad_out),
+      "--densify: on, off or auto");
   ExpectOneLineError(RunCommand(WatergsBin() + " extract --input_path " + wm +
                                 " --workspace_path " + ws + " --decoder " +
                                 decoder + " --message bits:00110011001100110"),

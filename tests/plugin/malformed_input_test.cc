@@ -95,19 +95,34 @@ TEST_F(MalformedInput, BinariesTruncatedAtEveryByte) {
 
 TEST_F(MalformedInput, TextTruncatedAtEveryLine) {
   // Each camera is used, each image observes points and each point is
-  // observed, so dropping any record leaves a dangling reference; a cut
-  // inside an image's two lines leaves it without its POINTS2D line. The
-  // error may name the file that holds the dangling reference.
+  // observed, so dropping any record leaves a dangling reference, named in
+  // the file that holds it: a cut cameras file leaves images of a missing
+  // camera (images.txt), a cut points file leaves observed points missing
+  // (points3D.txt). An images file cut between records leaves tracks that
+  // point to a missing image (points3D.txt); one cut inside a record, after
+  // its first line, leaves the image without its POINTS2D line (images.txt).
   for (const char* file :
        {"txt/cameras.txt", "txt/images.txt", "txt/points3D.txt"}) {
     const std::string text = Bytes(file);
-    int cuts = 0;
+    int cuts = 0, data_lines = 0;
     for (size_t at = text.find('\n'); at + 1 < text.size();
          at = text.find('\n', at + 1)) {
+      const size_t line_start = at == 0 ? 0 : text.rfind('\n', at - 1) + 1;
+      if (text[line_start] != '#') ++data_lines;
       if (text[at + 1] == '#') continue;  // still inside the comment header
       Put(file, text.substr(0, at + 1));
       SCOPED_TRACE(std::string(file) + " cut after byte " + std::to_string(at));
-      ExpectError("txt", "", "");
+      const std::string name = file;
+      if (name == "txt/cameras.txt") {
+        ExpectError("txt", "txt/images.txt", "does not exist in cameras file");
+      } else if (name == "txt/points3D.txt") {
+        ExpectError("txt", "txt/points3D.txt", "observes (truncated file?)");
+      } else if (data_lines % 2 == 1) {
+        ExpectError("txt", "txt/images.txt",
+                    "lacks its POINTS2D line (truncated file)");
+      } else {
+        ExpectError("txt", "txt/points3D.txt", "track refers to missing image");
+      }
       ++cuts;
     }
     EXPECT_GE(cuts, 2) << file;

@@ -9,13 +9,17 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <memory>
 #include <random>
 #include <string>
 
+#include "gaussian/checkpoint.h"
 #include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "tests/common/backend_parity.h"
+#include "tests/common/bit_identical.h"
 #include "tests/common/cuda_test.h"
 #include "tests/common/embed_scene.h"
 #include "tests/common/look_at.h"
@@ -24,6 +28,8 @@
 namespace watergs {
 namespace {
 
+using testing::ExpectBitIdenticalModels;
+using testing::ExpectSameAdamGroup;
 using testing::MakeResponsive;
 using testing::MakeScene;
 using testing::RandomBall;
@@ -42,26 +48,67 @@ TEST(ParamMask, ParsesGroupsAndRejectsUnknownNames) {
   EXPECT_THROW(ParseParamMask(""), Error);
 }
 
+// Each layer gets a run of its own, every iteration checked to have used
+// it: a run sampling all four in 6 iterations leaves a given layer undrawn
+// with probability (3/4)^6 = 18%, and a layer never drawn is never tested.
 TEST(Embedder, MaskKeepsFrozenGroupsBitIdentical) {
   Scene s = MakeScene(3, 32, 24);
   HiddenModel net(TinyDecoderConfig(8), false, 3);
   Decoder decoder(&net);
-  EmbedOptions o = DefaultEmbedOptions(6);
-  o.trainable = ParseParamMask("f_dc,opacity");
-  o.distortions = ParseDistortionList("identity,gn:0.01,dropout:0.2,crop:0.2");
-  o.crop_size = 16;
-  o.gamma = 1;
-  Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder,
-                    RandomBits(8, 1), MakeCpuRasterizer());
-  embedder.Run();
-  const GaussianModel& m = embedder.model();
-  ASSERT_EQ(m.size(), s.model.size());
-  EXPECT_EQ(m.means, s.model.means);
-  EXPECT_EQ(m.log_scales, s.model.log_scales);
-  EXPECT_EQ(m.quats, s.model.quats);
-  EXPECT_EQ(m.sh_rest, s.model.sh_rest);
-  EXPECT_NE(m.sh_dc, s.model.sh_dc);
-  EXPECT_NE(m.opacity_logits, s.model.opacity_logits);
+  for (const char* layer : {"identity", "gn:0.01", "dropout:0.2", "crop:0.2"}) {
+    SCOPED_TRACE(layer);
+    EmbedOptions o = DefaultEmbedOptions(6);
+    o.trainable = ParseParamMask("f_dc,opacity");
+    o.densify = false;
+    o.distortions = ParseDistortionList(layer);
+    o.crop_size = 16;
+    o.gamma = 1;
+    Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder,
+                      RandomBits(8, 1), MakeCpuRasterizer());
+    for (int i = 0; i < 6; ++i) {
+      ASSERT_EQ(embedder.Step().distortion, ToString(o.distortions[0]));
+    }
+    const GaussianModel& m = embedder.model();
+    ASSERT_EQ(m.size(), s.model.size());
+    EXPECT_EQ(m.means, s.model.means);
+    EXPECT_EQ(m.log_scales, s.model.log_scales);
+    EXPECT_EQ(m.quats, s.model.quats);
+    EXPECT_EQ(m.sh_rest, s.model.sh_rest);
+    EXPECT_NE(m.sh_dc, s.model.sh_dc);
+    EXPECT_NE(m.opacity_logits, s.model.opacity_logits);
+  }
+}
+
+// Density control gives new Gaussians values in every group and removes
+// Gaussians from frozen ones, so it cannot honour a partial mask: the
+// combination is refused with one line rather than quietly run without
+// density control.
+TEST(Embedder, PartialMaskWithDensityControlIsRefused) {
+  Scene s = MakeScene(1, 16, 12);
+  HiddenModel net(TinyDecoderConfig(8), false, 3);
+  Decoder decoder(&net);
+  EmbedOptions o = DefaultEmbedOptions(2);
+  o.trainable = ParseParamMask("xyz,f_dc,f_rest,opacity,scaling");
+  ASSERT_TRUE(o.densify);
+  try {
+    Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder,
+                      RandomBits(8, 1), MakeCpuRasterizer());
+    ADD_FAILURE() << "a partial mask with density control was accepted";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("density control needs every parameter group"),
+              std::string::npos)
+        << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+  // Either change alone is accepted.
+  o.densify = false;
+  EXPECT_NO_THROW(Embedder(o, s.views, s.train, s.model, 3.0, &decoder,
+                           RandomBits(8, 1), MakeCpuRasterizer()));
+  o.densify = true;
+  o.trainable = ParseParamMask("ALL");
+  EXPECT_NO_THROW(Embedder(o, s.views, s.train, s.model, 3.0, &decoder,
+                           RandomBits(8, 1), MakeCpuRasterizer()));
 }
 
 // Directional derivative of gamma * BCE(m, D(render(model)[crop])) along
@@ -187,9 +234,31 @@ TEST(Embedder, EmbeddingLowersTheBitErrorRate) {
   EXPECT_GT(after.psnr, 20.0);
 }
 
+// The CPU rasterizer, recording which model each pass was given.
+class ModelRecorder : public Rasterizer {
+ public:
+  void Forward(const GaussianModel& model, const RenderCamera& camera,
+               const RenderOptions& options, ImageRGB* image,
+               std::unique_ptr<RenderContext>* context) override {
+    forward_models.push_back(&model);
+    inner_->Forward(model, camera, options, image, context);
+  }
+  void Backward(const GaussianModel& model, const RenderContext& context,
+                const ImageRGB& grad_image, GaussianGradients* grads) override {
+    backward_models.push_back(&model);
+    inner_->Backward(model, context, grad_image, grads);
+  }
+  std::vector<const GaussianModel*> forward_models, backward_models;
+
+ private:
+  std::unique_ptr<Rasterizer> inner_ = MakeCpuRasterizer();
+};
+
 // Identity-only runs render the model itself: same random stream, same
-// result as a run without layers (and no copy or scatter; timing in
-// benchmarks/embed_benchmark.cc).
+// result as a run without layers, and neither a distorted copy nor a
+// gradient scatter: the rasterizer is handed the embedder's own model in
+// both passes (a copy would be another object, and its gradients would need
+// the scatter). Timing in benchmarks/embed_benchmark.cc.
 TEST(Embedder, IdentityOnlyRunEqualsARunWithoutLayers) {
   Scene s = MakeScene(2, 24, 20);
   HiddenModel net(TinyDecoderConfig(8), false, 3);
@@ -200,14 +269,26 @@ TEST(Embedder, IdentityOnlyRunEqualsARunWithoutLayers) {
   Embedder plain(o, s.views, s.train, s.model, 3.0, &decoder, RandomBits(8, 1),
                  MakeCpuRasterizer());
   plain.Run();
-  o.distortions = ParseDistortionList("identity");
-  Embedder identity(o, s.views, s.train, s.model, 3.0, &decoder,
-                    RandomBits(8, 1), MakeCpuRasterizer());
-  identity.Run();
-  EXPECT_EQ(plain.model().means, identity.model().means);
-  EXPECT_EQ(plain.model().sh_dc, identity.model().sh_dc);
+  for (const char* layers : {"identity", "gn:0.01"}) {
+    SCOPED_TRACE(layers);
+    o.distortions = ParseDistortionList(layers);
+    auto recorder = std::make_unique<ModelRecorder>();
+    const ModelRecorder& passes = *recorder;
+    Embedder run(o, s.views, s.train, s.model, 3.0, &decoder, RandomBits(8, 1),
+                 std::move(recorder));
+    run.Run();
+    const GaussianModel* own = &run.model();
+    ASSERT_EQ(passes.forward_models.size(), 4u);
+    ASSERT_EQ(passes.backward_models.size(), 4u);
+    const bool identity = std::string(layers) == "identity";
+    for (size_t i = 0; i < 4; ++i) {
+      // The noise layer shows that a copy would be seen.
+      EXPECT_EQ(passes.forward_models[i] == own, identity) << "forward " << i;
+      EXPECT_EQ(passes.backward_models[i] == own, identity) << "backward " << i;
+    }
+    if (identity) ExpectBitIdenticalModels(plain.model(), run.model());
+  }
   EXPECT_NE(plain.model().sh_dc, s.model.sh_dc);
-  EXPECT_EQ(identity.total_timings().distortion < 1e-3, true);
 }
 
 TEST(Embedder, ResumeGivesTheSameResultAsAnUninterruptedRun) {
@@ -233,9 +314,22 @@ TEST(Embedder, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   resumed.Resume(path);
   EXPECT_EQ(resumed.iteration(), 3);
   resumed.Run();
-  EXPECT_EQ(resumed.model().means, full.model().means);
-  EXPECT_EQ(resumed.model().sh_dc, full.model().sh_dc);
+  ExpectBitIdenticalModels(resumed.model(), full.model());
   EXPECT_EQ(resumed.origin(), full.origin());
+  // The optimiser and density state too, as both runs checkpoint them.
+  const std::string full_path = path + ".full";
+  full.SaveCheckpoint(full_path);
+  resumed.SaveCheckpoint(path);
+  const TrainingCheckpoint a = ReadCheckpoint(full_path);
+  const TrainingCheckpoint b = ReadCheckpoint(path);
+  for (int g = 0; g < kNumParamGroups; ++g) {
+    ExpectSameAdamGroup(a.adam[g], b.adam[g],
+                        GroupName(static_cast<ParamGroup>(g)));
+  }
+  EXPECT_EQ(a.adam_rejected, b.adam_rejected);
+  EXPECT_EQ(a.density_state, b.density_state);
+  EXPECT_EQ(a.rng_state, b.rng_state);
+  std::remove(full_path.c_str());
   // Another run's checkpoint is refused.
   o.gamma = 0.5;
   Embedder other(o, s.views, s.train, s.model, 3.0, &decoder, RandomBits(8, 1),
@@ -400,6 +494,7 @@ TEST(EmbedderCuda, DeviceResidentNoiseAndDropoutKeepFrozenGroups) {
   EmbedOptions o = DefaultEmbedOptions(40);
   o.crop_size = 0;
   o.trainable = ParseParamMask("f_dc,f_rest");
+  o.densify = false;
   o.distortions = ParseDistortionList("gn:0.05,dropout:0.3");
   const Bits message = RandomBits(16, 9);
   Embedder gpu(o, s.views, s.train, s.model, 3.0, decoder.get(), message,

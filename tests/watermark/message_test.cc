@@ -62,24 +62,49 @@ TEST(Message, HammingDistanceCountsDifferences) {
   EXPECT_THROW(HammingDistance(Bits(3), Bits(4)), Error);
 }
 
-// Exact tail by integer Pascal's triangle, independent of the lgamma sum.
-long double ExactTail(int matching, int n) {
-  std::vector<unsigned long long> row(n + 1, 0);
+// Exact tail count sum_{k >= matching} C(n, k) by integer Pascal's
+// triangle, independent of the lgamma sum (exact for n <= 126).
+unsigned __int128 TailCount(int matching, int n) {
+  std::vector<unsigned __int128> row(n + 1, 0);
   row[0] = 1;
   for (int i = 1; i <= n; ++i) {
     for (int k = i; k > 0; --k) row[k] += row[k - 1];
   }
-  unsigned long long count = 0;
+  unsigned __int128 count = 0;
   for (int k = matching; k <= n; ++k) count += row[k];
-  return static_cast<long double>(count) / std::pow(2.0L, n);
+  return count;
+}
+
+long double ExactTail(int matching, int n) {
+  return static_cast<long double>(TailCount(matching, n)) / std::pow(2.0L, n);
+}
+
+// Largest error count e with P[X >= n - e] <= 10^-6, decided in integers:
+// count * 10^6 <= 2^n, i.e. count <= floor(2^n / 10^6) (no rounding, no
+// overflow).
+int ExactMaxErrorsAtOnePerMillion(int n) {
+  const unsigned __int128 limit = (static_cast<unsigned __int128>(1) << n) /
+                                  static_cast<unsigned __int128>(1000000);
+  int best = -1;
+  for (int e = 0; e <= n; ++e) {
+    if (TailCount(n - e, n) > limit) break;
+    best = e;
+  }
+  return best;
 }
 
 TEST(Verification, PValueMatchesExactBinomialTail) {
-  for (int n : {8, 16, 32, 48, 60}) {
+  // Relative tolerance: the tail reaches 2^-n (8.7e-19 at n = 60), where an
+  // absolute one would accept anything. Each term is exp of a sum of three
+  // lgamma values below 190 (double spacing 3e-14 there), so the sum is
+  // good to ~1e-13 relative; 1e-11 leaves a margin and still catches a
+  // dropped or doubled term, which changes the tail by >= 2^-n / tail.
+  for (int n : {8, 16, 32, 48, 60, 100}) {
     for (int m = 0; m <= n; ++m) {
-      const double exact = static_cast<double>(ExactTail(m, n));
-      EXPECT_NEAR(BinomialTailPValue(m, n), exact, 1e-12 + 1e-9 * exact)
-          << m << "/" << n;
+      const long double exact = ExactTail(m, n);
+      const double p = BinomialTailPValue(m, n);
+      EXPECT_LE(std::abs(static_cast<long double>(p) - exact), 1e-11L * exact)
+          << m << "/" << n << ": " << p << " vs " << double(exact);
     }
   }
   EXPECT_DOUBLE_EQ(BinomialTailPValue(0, 48), 1.0);
@@ -111,9 +136,38 @@ TEST(Verification, VerdictsAndThresholds) {
   EXPECT_EQ(Decide(1e-9, {}), Verdict::kPresent);
   EXPECT_EQ(Decide(0.5, {}), Verdict::kAbsent);
   EXPECT_EQ(Decide(1e-4, {}), Verdict::kInconclusive);
-  const int e = MaxErrorsForPresence(48, 1e-6);
-  EXPECT_LE(BinomialTailPValue(48 - e, 48), 1e-6);
-  EXPECT_GT(BinomialTailPValue(48 - e - 1, 48), 1e-6);
+  // At the thresholds themselves: present at p = 1e-6 (p <= present_p),
+  // inconclusive at p = 0.01 (absent only above it); one ulp further each
+  // way flips the verdict.
+  const VerificationThresholds t;
+  ASSERT_EQ(t.present_p, 1e-6);
+  ASSERT_EQ(t.absent_p, 1e-2);
+  EXPECT_EQ(Decide(1e-6, t), Verdict::kPresent);
+  EXPECT_EQ(Decide(std::nextafter(1e-6, 1.0), t), Verdict::kInconclusive);
+  EXPECT_EQ(Decide(1e-2, t), Verdict::kInconclusive);
+  EXPECT_EQ(Decide(std::nextafter(1e-2, 1.0), t), Verdict::kAbsent);
+  EXPECT_EQ(Decide(std::nextafter(1e-2, 0.0), t), Verdict::kInconclusive);
+}
+
+TEST(Verification, MaxErrorsForPresenceMatchesTheExactCounts) {
+  // The figures the README quotes, worked out by hand from exact binomial
+  // sums: at 48 bits, 7 wrong bits give p = 3.1e-7 and 8 give 1.65e-6.
+  EXPECT_EQ(MaxErrorsForPresence(48, 1e-6), 7);
+  EXPECT_EQ(MaxErrorsForPresence(19, 1e-6), -1);  // 2^-19 = 1.9e-6
+  EXPECT_EQ(MaxErrorsForPresence(20, 1e-6), 0);   // 2^-20 = 9.5e-7
+  EXPECT_EQ(MaxErrorsForPresence(32, 1e-6), 2);
+  EXPECT_EQ(MaxErrorsForPresence(64, 1e-6), 13);
+  EXPECT_EQ(MaxErrorsForPresence(96, 1e-6), 24);
+  // Every length from 1 to 120 against the integer decision.
+  for (int n = 1; n <= 120; ++n) {
+    EXPECT_EQ(MaxErrorsForPresence(n, 1e-6), ExactMaxErrorsAtOnePerMillion(n))
+        << n << " bits";
+  }
+  // present_p exactly at a tail value counts as present (<=), one ulp
+  // below it does not.
+  const double p7 = BinomialTailPValue(48 - 7, 48);
+  EXPECT_EQ(MaxErrorsForPresence(48, p7), 7);
+  EXPECT_EQ(MaxErrorsForPresence(48, std::nextafter(p7, 0.0)), 6);
 }
 
 }  // namespace

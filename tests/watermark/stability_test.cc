@@ -160,6 +160,10 @@ TEST(Stability, AllZeroAndAllOneMessagesEmbedFinitely) {
   Scene s = MakeScene();
   HiddenModel net(TinyConfig(16), false, 4);
   Decoder decoder(&net);
+  // Both runs decode the same render in their first iteration (same model,
+  // same seed: the message draws nothing), and each logit reads 0 or 1, so
+  // every bit is wrong for exactly one of the two messages.
+  int first_errors = 0;
   for (const char* text : {"bits:0000000000000000", "hex:ffff"}) {
     const Bits message = ParseMessage(text, 16);
     const bool ones = text[0] == 'h';
@@ -169,13 +173,13 @@ TEST(Stability, AllZeroAndAllOneMessagesEmbedFinitely) {
     for (int i = 0; i < 4; ++i) {
       const EmbedStepStats stats = embedder.Step();
       EXPECT_TRUE(std::isfinite(stats.bce)) << text;
-      EXPECT_GE(stats.bit_errors, 0);
-      EXPECT_LE(stats.bit_errors, 16);
+      if (i == 0) first_errors += stats.bit_errors;
     }
     EXPECT_EQ(embedder.model().CountNonFinite(), 0u) << text;
     const CheckResult check = embedder.Check(s.train);
     EXPECT_TRUE(std::isfinite(check.mean_ber) && std::isfinite(check.psnr));
   }
+  EXPECT_EQ(first_errors, 16);
 }
 
 TEST(Stability, EmptyMaskIsRefused) {
