@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstring>
 
+#include <Eigen/Core>
+
 #include "gaussian/error.h"
 #include "watermark/network_image.h"
 
@@ -41,6 +43,44 @@ Linear ZeroLinear(const FeatureDecoderConfig& config) {
   std::fill(linear.weight.value.begin(), linear.weight.value.end(), 0.f);
   std::fill(linear.bias.value.begin(), linear.bias.value.end(), 0.f);
   return linear;
+}
+
+// dy [1,C,h,w] of a 3 -> C convolution (weights [C,3,k,k], zero padding
+// k/2) -> dx [1,3,h,w]: dcol = W^T dy (3k^2 x hw), then each column entry
+// added back to the input pixel it was read from. C k^2 multiply-adds a
+// pixel and a 3k^2 x hw buffer, where Conv2d::Backward's im2col of dy needs
+// a C k^2 x hw one (1024 channels at 60x45: 100 MB).
+void ConvInputGradient(const Conv2d& conv, const Tensor& dy,
+                       std::vector<float>* dcol, Tensor* dx) {
+  const int k = conv.kernel(), pad = k / 2, rows = 3 * k * k;
+  const int h = dy.h, w = dy.w;
+  const size_t hw = size_t(h) * w;
+  using ConstMap = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic,
+                                                  Eigen::Dynamic, Eigen::RowMajor>>;
+  using Map =
+      Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+  dcol->resize(size_t(rows) * hw);
+  Map(dcol->data(), rows, hw).noalias() =
+      ConstMap(conv.weight.value.data(), conv.out_channels(), rows).transpose() *
+      ConstMap(dy.Plane(0, 0), conv.out_channels(), hw);
+  dx->Resize(1, 3, h, w);
+  dx->Fill(0.f);
+  for (int c = 0; c < 3; ++c) {
+    float* plane = dx->Plane(0, c);
+    for (int ky = 0; ky < k; ++ky) {
+      for (int kx = 0; kx < k; ++kx) {
+        const float* row = dcol->data() + (size_t(c * k + ky) * k + kx) * hw;
+        for (int y = 0; y < h; ++y) {
+          const int sy = y + ky - pad;
+          if (sy < 0 || sy >= h) continue;
+          const int x0 = std::max(0, pad - kx), x1 = std::min(w, w + pad - kx);
+          float* out = plane + size_t(sy) * w + kx - pad;
+          const float* in = row + size_t(y) * w;
+          for (int x = x0; x < x1; ++x) out[x] += in[x];
+        }
+      }
+    }
+  }
 }
 
 }  // namespace
@@ -118,12 +158,16 @@ void FeatureNet::Backward(const Tensor& dlogits, Tensor* dimage) {
   linear.Backward(features_, dlogits, &dfeatures_, false);
   GlobalAvgPoolBackward(dfeatures_, relu_, &drelu_);
   ReluBackward(relu_, &drelu_);
-  if (config_.pool > 1) {
-    conv.Backward(pooled_, drelu_, &dpooled_, false);
-    AvgPoolBackward(dpooled_, config_.pool, *image_, dimage);
+  if (drelu_.n != 1) {
+    // Batches (calibration never backpropagates): the general layer.
+    conv.Backward(config_.pool > 1 ? pooled_ : *image_, drelu_,
+                  config_.pool > 1 ? &dpooled_ : dimage, false);
   } else {
-    conv.Backward(*image_, drelu_, dimage, false);
+    ConvInputGradient(conv, drelu_, &dcol_,
+                      config_.pool > 1 ? &dpooled_ : dimage);
   }
+  if (config_.pool > 1)
+    AvgPoolBackward(dpooled_, config_.pool, *image_, dimage);
 }
 
 NetworkFile FeatureNetToFile(FeatureNet& net) {

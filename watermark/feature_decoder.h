@@ -78,6 +78,7 @@ class FeatureNet {
   // Activations of the last Forward and gradient scratch.
   Tensor pooled_, conv_out_, relu_, features_, logits_, dfeatures_, drelu_,
       dpooled_;
+  std::vector<float> dcol_;
 };
 
 // image [N,C,H,W] -> [N,C,H/p,W/p]: the mean of each p x p block (rows and
