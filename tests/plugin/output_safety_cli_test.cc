@@ -1,0 +1,97 @@
+// CLI tests of what the commands refuse to overwrite and of when they check
+// their outputs: model_converter into the folder of its input model, the
+// three model files replaced as a set, train into a folder holding its
+// inputs or an earlier run, and extract/attack outputs checked before the
+// work (so that a mistyped path fails at once, not after it).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "gaussian/file_util.h"
+#include "gaussian/ply_io.h"
+#include "plugin/reconstruction_io.h"
+#include "synthetic_model.h"
+#include "tests/plugin/rendered_workspace.h"
+
+namespace watergs {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::ExpectOneLineError;
+using testing::RunCommand;
+using testing::TempDir;
+using testing::WatergsBin;
+
+// Names of the files in `folder`, sorted.
+std::vector<std::string> FileNames(const std::string& folder) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    names.push_back(entry.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+TEST(ModelConverterCli, RefusesTheFolderOfItsInputModelHoweverSpelled) {
+  TempDir dir("converter_in_place");
+  const std::string ws = dir / "ws";
+  const std::string model = ws + "/sparse/0";
+  WriteReconstruction(testing::MakeSyntheticReconstruction({}), model,
+                      ModelFormat::kBinary);
+  const auto images = ReadFileBytes(model + "/images.bin");
+  const auto points = ReadFileBytes(model + "/points3D.bin");
+  fs::create_directory_symlink("sparse/0", ws + "/link");
+  const std::string convert =
+      WatergsBin() + " model_converter --output_type BIN --input_path ";
+  for (const std::string& out :
+       {model, model + "/.", ws + "/sparse/../sparse/0", ws + "/link"}) {
+    const auto run = RunCommand(convert + ws + " --output_path " + out);
+    ExpectOneLineError(run, out + ": holds the input model");
+  }
+  ExpectOneLineError(RunCommand(WatergsBin() +
+                                " model_converter --output_type TXT "
+                                "--input_path " +
+                                model + " --output_path " + model),
+                     "holds the input model");
+  EXPECT_TRUE(ReadFileBytes(model + "/images.bin") == images) << "rewritten";
+  EXPECT_TRUE(ReadFileBytes(model + "/points3D.bin") == points) << "rewritten";
+  EXPECT_EQ(
+      FileNames(model),
+      (std::vector<std::string>{"cameras.bin", "images.bin", "points3D.bin"}));
+  // Another folder is fine.
+  const auto other = RunCommand(convert + ws + " --output_path " + (dir / "o"));
+  EXPECT_EQ(other.exit_code, 0) << other.output;
+}
+
+// A failure on the last of the three files (here a folder in its place)
+// replaces none of them: new cameras and images beside an old points3D
+// would read as a model, a wrong one.
+TEST(ModelConverterCli, WritesTheThreeFilesAsASet) {
+  TempDir dir("converter_set");
+  testing::SyntheticModelOptions options;
+  WriteReconstruction(testing::MakeSyntheticReconstruction(options), dir / "in",
+                      ModelFormat::kText);
+  options.seed = 2;
+  options.num_images = 4;
+  const std::string out = dir / "out";
+  WriteReconstruction(testing::MakeSyntheticReconstruction(options), out,
+                      ModelFormat::kBinary);
+  const auto cameras = ReadFileBytes(out + "/cameras.bin");
+  const auto images = ReadFileBytes(out + "/images.bin");
+  fs::remove(out + "/points3D.bin");
+  fs::create_directory(out + "/points3D.bin");
+  ExpectOneLineError(RunCommand(WatergsBin() +
+                                " model_converter --output_type BIN "
+                                "--input_path " +
+                                (dir / "in") + " --output_path " + out),
+                     out + "/points3D.bin: is a directory");
+  EXPECT_TRUE(ReadFileBytes(out + "/cameras.bin") == cameras) << "replaced";
+  EXPECT_TRUE(ReadFileBytes(out + "/images.bin") == images) << "replaced";
+  EXPECT_EQ(FileNames(out), (std::vector<std::string>{
+                                "cameras.bin", "images.bin", "points3D.bin"}));
+}
+
+}  // namespace
+}  // namespace watergs
