@@ -93,5 +93,49 @@ TEST(ModelConverterCli, WritesTheThreeFilesAsASet) {
                                 "cameras.bin", "images.bin", "points3D.bin"}));
 }
 
+TEST(TrainCli, RefusesFoldersHoldingInputsOrAnEarlierRun) {
+  TempDir dir("train_output_safety");
+  const std::string ws =
+      testing::MakeRenderedWorkspace(dir / "ws", testing::SmallSceneOptions());
+  const std::vector<std::string> ws_files = FileNames(ws);
+  const std::vector<std::string> image_files = FileNames(ws + "/images");
+  const std::string train = WatergsBin() + " train --workspace_path " + ws +
+                            " --iterations 3 --sh_degree 1 --num_threads 1";
+  const std::pair<std::string, std::string> refused[] = {
+      {ws, "is the workspace"},
+      {ws + "/.", "is the workspace"},
+      {ws + "/images", "is the image folder"},
+      {ws + "/images/run", "lies inside the image folder"},
+      {ws + "/sparse/0", "is the sparse model folder"}};
+  for (const auto& [out, why] : refused) {
+    ExpectOneLineError(RunCommand(train + " --output_path " + out), why);
+  }
+  EXPECT_EQ(FileNames(ws), ws_files);
+  EXPECT_EQ(FileNames(ws + "/images"), image_files);
+
+  // A run that fails on its inputs leaves no folder behind.
+  const std::string never = dir / "never";
+  ExpectOneLineError(RunCommand(WatergsBin() + " train --workspace_path " +
+                                (dir / "missing") + " --output_path " + never),
+                     "missing");
+  EXPECT_FALSE(fs::exists(never));
+
+  // A finished run is replaced only with --overwrite.
+  const std::string out = dir / "run";
+  const auto first = RunCommand(train + " --output_path " + out);
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  const auto ply = ReadFileBytes(out + "/point_cloud.ply");
+  ExpectOneLineError(RunCommand(train + " --seed 5 --output_path " + out),
+                     out + ": holds an earlier run (point_cloud.ply)");
+  EXPECT_TRUE(ReadFileBytes(out + "/point_cloud.ply") == ply) << "replaced";
+  ExpectOneLineError(
+      RunCommand(train + " --output_path " + out + " --resume --overwrite"),
+      "not both");
+  const auto replaced =
+      RunCommand(train + " --seed 5 --overwrite --output_path " + out);
+  ASSERT_EQ(replaced.exit_code, 0) << replaced.output;
+  EXPECT_FALSE(ReadFileBytes(out + "/point_cloud.ply") == ply) << "kept";
+}
+
 }  // namespace
 }  // namespace watergs
