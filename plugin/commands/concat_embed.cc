@@ -51,6 +51,7 @@ void Validate(const ConcatArgs& a) {
   if (a.hidden < 1) Fail("--hidden must be at least 1");
   if (a.crop_size < 0) Fail("--crop_size must be >= 0 (0 = whole frames)");
   if (a.check_views < 1) Fail("--check_views must be at least 1");
+  CheckOutputFile(a.output_path);  // before the training, not after
 }
 
 // The message read from whole-frame renders of `model` on `views`.

@@ -65,6 +65,7 @@ void Validate(const EmbedArgs& a) {
   }
   if (a.densify != "on" && a.densify != "off") Fail("--densify: on or off");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
+  CheckOutputFile(a.output_path);  // before the fine-tuning, not after
 }
 
 // Seconds of one forward + backward pass of the rasterizer at `rect`

@@ -113,6 +113,10 @@ int RunEval(int argc, char** argv) {
     Fail("eval: --false_positive_rate must be in (0, 0.01)");
   }
   if (num_threads > 0) omp_set_num_threads(num_threads);
+  if (!output_path.empty()) {
+    CheckOutputFile(output_path + ".json");  // before the work, not after
+    CheckOutputFile(output_path + ".md");
+  }
 
   EvaluationOptions options;
   options.model_attacks = model_attacks.empty()

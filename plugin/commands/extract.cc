@@ -94,6 +94,8 @@ int RunExtract(int argc, char** argv) {
     Fail("--false_positive_rate must be in (0, 0.01)");
   }
   if (num_threads > 0) omp_set_num_threads(num_threads);
+  // Before the work: a mistyped --json path fails at once.
+  if (!json_path.empty()) CheckOutputFile(json_path);
 
   const PlyData ply = ReadPly(input_path);
   const std::unique_ptr<BitDecoder> decoder =

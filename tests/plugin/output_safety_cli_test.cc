@@ -137,5 +137,34 @@ TEST(TrainCli, RefusesFoldersHoldingInputsOrAnEarlierRun) {
   EXPECT_FALSE(ReadFileBytes(out + "/point_cloud.ply") == ply) << "kept";
 }
 
+TEST(ExtractAndAttackCli, CheckTheirOutputsBeforeTheWork) {
+  TempDir dir("outputs_first");
+  GaussianModel truth;
+  const std::string ws = testing::MakeRenderedWorkspace(
+      dir / "ws", testing::SmallSceneOptions(), &truth);
+  const std::string ply = dir / "model.ply";
+  WritePly(ply, truth);
+  const std::string decoder = testing::WriteTinyDecoder(dir / "decoder.bin");
+  const std::string missing = dir / "missing";
+
+  // One line: the error, and none of the work's lines before it.
+  ExpectOneLineError(
+      RunCommand(WatergsBin() + " extract --input_path " + ply +
+                 " --workspace_path " + ws + " --decoder " + decoder +
+                 " --message hex:a5c3 --json " + missing + "/r.json"),
+      missing + "/r.json: output folder");
+  ExpectOneLineError(
+      RunCommand(WatergsBin() + " attack --input_path " + ply +
+                 " --attack gn:0.01,similarity:10,0,0,0,1 --output_path " +
+                 missing + "/a.ply"),
+      missing + "/a.ply: output folder");
+  fs::create_directory(dir / "a_folder.ply");
+  ExpectOneLineError(
+      RunCommand(WatergsBin() + " attack --input_path " + ply +
+                 " --attack sh0 --output_path " + (dir / "a_folder.ply")),
+      "is a directory");
+  EXPECT_FALSE(fs::exists(missing));
+}
+
 }  // namespace
 }  // namespace watergs
