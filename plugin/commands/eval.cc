@@ -47,16 +47,27 @@ std::vector<size_t> SelectViews(const Workspace& workspace,
   return views;
 }
 
-// Loads the LPIPS weights if the file exists; else sets `note`.
-std::unique_ptr<Lpips> LoadLpipsIfPresent(const std::string& path,
-                                          std::string* note) {
+// Loads the LPIPS weights. Weights missing at the default path (relative to
+// the current folder) skip LPIPS, said once up front and in `note`; missing
+// at a path the user gave is an error.
+std::unique_ptr<Lpips> LoadLpips(const std::string& path, bool given,
+                                 std::string* note) {
   if (path.empty()) {
     *note = "not computed (--lpips_weights is empty)";
     return nullptr;
   }
   if (!std::filesystem::exists(path)) {
-    *note = "LPIPS weights not found at " + path +
-            " (bash datasets_scripts/download_lpips_weights.sh)";
+    const std::string fetch =
+        "bash datasets_scripts/download_lpips_weights.sh fetches them";
+    if (given) {
+      FailAt(path, "LPIPS weights not found (--lpips_weights; " + fetch +
+                       ", '' skips LPIPS)");
+    }
+    const std::string why = "no weights at the default " + path +
+                            " (relative to the current folder; " + fetch +
+                            ", --lpips_weights names another file)";
+    *note = "not computed: " + why;
+    std::cerr << "eval: LPIPS skipped: " << why << "\n";
     return nullptr;
   }
   return Lpips::Load(path);
@@ -98,7 +109,10 @@ int RunEval(int argc, char** argv) {
   parser.Add("image_attacks", &image_attacks,
              "Attacks on renders: jpeg:Q, resize:F, crop:F ('' for none)");
   parser.Add("lpips_weights", &lpips_path,
-             "LPIPS-VGG weights (download_lpips_weights.sh); '' to skip");
+             "LPIPS-VGG weights (datasets_scripts/download_lpips_weights.sh); "
+             "'' to skip. The default is relative to the current folder and "
+             "LPIPS is skipped (said once) if it is missing there; a path "
+             "given that does not exist is an error");
   parser.Add("views", &which_views, "test (every 8th) or all");
   parser.Add("max_views", &max_views,
              "Evaluate at most this many views, spread evenly (0 = all)");
@@ -135,7 +149,7 @@ int RunEval(int argc, char** argv) {
       LoadBitDecoder(decoder_path, parser.device());
   const Bits bits = ParseMessage(message, decoder->NumBits());
   std::unique_ptr<Lpips> lpips =
-      LoadLpipsIfPresent(lpips_path, &options.lpips_note);
+      LoadLpips(lpips_path, parser.Given("lpips_weights"), &options.lpips_note);
   options.lpips = lpips.get();
   const Workspace workspace = Workspace::Open(workspace_options);
   const WorkspaceViews views(workspace);
