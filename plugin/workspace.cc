@@ -161,7 +161,7 @@ fs::path WorkspaceOfModel(const std::string& input_path) {
 WorkspaceOptions WithDefaults(const WorkspaceOptions& options) {
   WorkspaceOptions filled = options;
   if (filled.workspace_path.empty() && filled.input_path.empty()) {
-    Fail("workspace: give --workspace_path or --input_path");
+    Fail("workspace: give --workspace_path or --sparse_path");
   }
   if (filled.downscale < 1) Fail("workspace: downscale must be >= 1");
   const fs::path root = filled.workspace_path.empty()

@@ -110,6 +110,8 @@ int RunEmbed(int argc, char** argv) {
   parser.AddRequired("input_path", &a.input_path, "Trained 3DGS PLY");
   parser.AddRequired("workspace_path", &a.workspace.workspace_path,
                      "COLMAP workspace the model was trained on");
+  parser.Add("sparse_path", &a.workspace.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &a.workspace.image_path,
              "Image folder (default <workspace>/images)");
   parser.Add("downscale", &a.workspace.downscale, "Image downscale: 1,2,4,8");

@@ -95,6 +95,8 @@ int RunEval(int argc, char** argv) {
   parser.AddRequired("input_path", &input_path, "The watermarked PLY");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
                      "COLMAP workspace with the ground-truth images");
+  parser.Add("sparse_path", &workspace_options.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &workspace_options.image_path,
              "Image folder (default <workspace>/images)");
   parser.Add("downscale", &workspace_options.downscale,

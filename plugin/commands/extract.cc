@@ -64,6 +64,8 @@ int RunExtract(int argc, char** argv) {
   parser.AddRequired("input_path", &input_path, "3DGS PLY to examine");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
                      "COLMAP workspace whose cameras are rendered");
+  parser.Add("sparse_path", &workspace_options.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &workspace_options.image_path,
              "Image folder (default <workspace>/images)");
   parser.Add("downscale", &workspace_options.downscale,

@@ -179,8 +179,9 @@ int RunTrain(int argc, char** argv) {
                       "workspace (Inria's 3DGS recipe).");
   parser.AddRequired("workspace_path", &a.workspace.workspace_path,
                      "COLMAP workspace (images/ and sparse/0)");
-  parser.Add("input_path", &a.workspace.input_path,
+  parser.Add("sparse_path", &a.workspace.input_path,
              "Sparse model folder (default <workspace>/sparse/0)");
+  parser.AddAlias("input_path", "sparse_path");
   parser.Add("image_path", &a.workspace.image_path,
              "Image folder (default <workspace>/images)");
   parser.AddRequired("output_path", &a.output_path,

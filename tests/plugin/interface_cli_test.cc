@@ -45,6 +45,67 @@ nlohmann::json ReadJson(const std::string& path) {
   return nlohmann::json::parse(in);
 }
 
+// The model lives outside sparse/0: every command finds it with
+// --sparse_path (train also with its old name, on the command line and in a
+// project file).
+TEST(InterfaceCli, SparsePathOnEveryCommandThatReadsAWorkspace) {
+  TempDir dir("interface_sparse");
+  const Scene s = MakeScene(dir);
+  const std::string model = dir / "model";
+  fs::rename(s.ws + "/sparse/0", model);
+  for (const char* command :
+       {"train", "render", "embed", "extract", "eval", "concat_embed"}) {
+    const auto help = RunCommand(WatergsBin() + " " + command + " -h");
+    EXPECT_NE(help.output.find("--sparse_path"), std::string::npos) << command;
+  }
+  const std::string train = WatergsBin() + " train --workspace_path " + s.ws +
+                            " --iterations 2 --sh_degree 1 --num_threads 1";
+  const auto by_name = RunCommand(train + " --sparse_path " + model +
+                                  " --output_path " + (dir / "t1"));
+  EXPECT_EQ(by_name.exit_code, 0) << by_name.output;
+  const auto by_alias = RunCommand(train + " --input_path=" + model +
+                                   " --output_path " + (dir / "t2"));
+  EXPECT_EQ(by_alias.exit_code, 0) << by_alias.output;
+  const std::string ini = dir / "train.ini";
+  AtomicWriteFile(ini, "input_path = " + model + "\n");
+  const auto from_ini = RunCommand(train + " --project_path " + ini +
+                                   " --output_path " + (dir / "t3"));
+  EXPECT_EQ(from_ini.exit_code, 0) << from_ini.output;
+  EXPECT_NE(RunCommand(WatergsBin() + " train -h")
+                .output.find("--input_path = --sparse_path"),
+            std::string::npos);
+  ExpectOneLineError(
+      RunCommand(train + " --sparse_path " + model + " --input_path " + model +
+                 " --output_path " + (dir / "t4")),
+      "--sparse_path");
+
+  const auto render = RunCommand(
+      WatergsBin() + " render --input_path " + s.ply + " --workspace_path " +
+      s.ws + " --sparse_path " + model + " --output_path " + (dir / "r"));
+  EXPECT_EQ(render.exit_code, 0) << render.output;
+  const std::string with_model =
+      " --input_path " + s.ply + " --workspace_path " + s.ws + " --decoder " +
+      s.decoder + " --message hex:a5c3 " + "--sparse_path " + model;
+  const auto extract = RunCommand(WatergsBin() + " extract" + with_model);
+  EXPECT_EQ(extract.exit_code, 0) << extract.output;
+  const auto embed = RunCommand(
+      WatergsBin() + " embed" + with_model +
+      " --iterations 1 --check_every 1 --check_views 1 --crop_size 16 "
+      "--densify off --num_threads 1 --output_path " +
+      (dir / "wm.ply"));
+  EXPECT_EQ(embed.exit_code, 0) << embed.output;
+  const auto eval =
+      RunCommand(WatergsBin() + " eval --raw_path " + s.ply + with_model +
+                 " --attacks identity --image_attacks '' --lpips_weights ''");
+  EXPECT_EQ(eval.exit_code, 0) << eval.output;
+  const auto concat = RunCommand(
+      WatergsBin() + " concat_embed" + with_model +
+      " --iterations 1 --check_views 1 --crop_size 16 --num_threads 1 "
+      "--output_path " +
+      (dir / "concat.ply"));
+  EXPECT_EQ(concat.exit_code, 0) << concat.output;
+}
+
 // LPIPS weights missing at the default path (relative to the current
 // folder) skip LPIPS with one line saying so; a path given that does not
 // exist is an error.
