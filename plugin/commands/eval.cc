@@ -94,7 +94,8 @@ int RunEval(int argc, char** argv) {
   parser.AddRequired("raw_path", &raw_path, "The raw (unwatermarked) PLY");
   parser.AddRequired("input_path", &input_path, "The watermarked PLY");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
-                     "COLMAP workspace with the ground-truth images");
+                     "COLMAP workspace (its images are the ground truth; "
+                     "without them only the raw renders are compared)");
   parser.Add("sparse_path", &workspace_options.input_path,
              "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &workspace_options.image_path,
@@ -153,7 +154,17 @@ int RunEval(int argc, char** argv) {
   std::unique_ptr<Lpips> lpips =
       LoadLpips(lpips_path, parser.Given("lpips_weights"), &options.lpips_note);
   options.lpips = lpips.get();
+  // Without images the renders are still compared with each other and the
+  // watermark read; only the comparisons with ground truth are left empty.
+  workspace_options.images_optional = true;
   const Workspace workspace = Workspace::Open(workspace_options);
+  options.ground_truth = workspace.has_images();
+  if (!options.ground_truth) {
+    options.ground_truth_note = "none (no image folder at " +
+                                workspace.options().image_path +
+                                "): only the raw renders are compared";
+    std::cerr << "eval: no ground truth: " << options.ground_truth_note << "\n";
+  }
   const WorkspaceViews views(workspace);
   const std::vector<size_t> eval_views =
       SelectViews(workspace, which_views, max_views);

@@ -67,7 +67,7 @@ int RunExtract(int argc, char** argv) {
   parser.Add("sparse_path", &workspace_options.input_path,
              "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &workspace_options.image_path,
-             "Image folder (default <workspace>/images)");
+             "Image folder (not read: extract renders the cameras only)");
   parser.Add("downscale", &workspace_options.downscale,
              "Image downscale: 1,2,4,8");
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
@@ -104,6 +104,7 @@ int RunExtract(int argc, char** argv) {
       LoadBitDecoder(decoder_path, parser.device());
   Bits expected;
   if (!message.empty()) expected = ParseMessage(message, decoder->NumBits());
+  workspace_options.images_optional = true;  // only the cameras are rendered
   const Workspace workspace = Workspace::Open(workspace_options);
   const WorkspaceViews views(workspace);
 

@@ -106,6 +106,50 @@ TEST(InterfaceCli, SparsePathOnEveryCommandThatReadsAWorkspace) {
   EXPECT_EQ(concat.exit_code, 0) << concat.output;
 }
 
+// Without an image folder, commands that only render cameras (extract,
+// render) or can compare renders with each other (eval) still run; those
+// that fit images (train, embed) say the folder is missing.
+TEST(InterfaceCli, ImagesOptionalWhereNoGroundTruthIsNeeded) {
+  TempDir dir("interface_no_images");
+  const Scene s = MakeScene(dir);
+  fs::remove_all(s.ws + "/images");
+  const std::string common = " --input_path " + s.ply + " --workspace_path " +
+                             s.ws + " --decoder " + s.decoder +
+                             " --message hex:a5c3";
+  const auto extract = RunCommand(WatergsBin() + " extract" + common +
+                                  " --json " + (dir / "x.json"));
+  ASSERT_EQ(extract.exit_code, 0) << extract.output;
+  EXPECT_EQ(ReadJson(dir / "x.json")["num_views"], 6);
+
+  const auto eval = RunCommand(
+      WatergsBin() + " eval --raw_path " + s.ply + common +
+      " --attacks identity --image_attacks '' --lpips_weights '' --views all "
+      "--output_path " +
+      (dir / "report"));
+  ASSERT_EQ(eval.exit_code, 0) << eval.output;
+  EXPECT_NE(eval.output.find("no ground truth"), std::string::npos)
+      << eval.output;
+  const auto report = ReadJson(dir / "report.json");
+  EXPECT_TRUE(report["quality"][0]["mean"]["psnr"].is_null());
+  EXPECT_EQ(report["quality"][1]["comparison"], "watermarked vs raw renders");
+  EXPECT_DOUBLE_EQ(report["quality"][1]["mean"]["ms_ssim"].get<double>(), 1.0);
+  EXPECT_EQ(report["robustness"].size(), 2u);
+
+  const auto render = RunCommand(
+      WatergsBin() + " render --input_path " + s.ply + " --workspace_path " +
+      s.ws + " --split all --output_path " + (dir / "renders"));
+  ASSERT_EQ(render.exit_code, 0) << render.output;
+  EXPECT_NE(render.output.find("no PSNR"), std::string::npos) << render.output;
+  EXPECT_TRUE(fs::exists(dir / "renders/frame_1000.png")) << render.output;
+
+  ExpectOneLineError(RunCommand(WatergsBin() + " train --workspace_path " +
+                                s.ws + " --output_path " + (dir / "t")),
+                     "image folder not found");
+  ExpectOneLineError(RunCommand(WatergsBin() + " embed" + common +
+                                " --output_path " + (dir / "wm.ply")),
+                     "image folder not found");
+}
+
 // LPIPS weights missing at the default path (relative to the current
 // folder) skip LPIPS with one line saying so; a path given that does not
 // exist is an error.
