@@ -20,6 +20,7 @@
 #include "plugin/option_parser.h"
 #include "watermark/concat_encoder.h"
 #include "watermark/extractor.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -81,7 +82,7 @@ void AddOptions(OptionParser* parser, ConcatArgs* a) {
   parser->Add("downscale", &a->workspace.downscale, "Image downscale: 1,2,4,8");
   parser->AddRequired("decoder", &a->decoder_path, "Decoder weights file");
   parser->AddRequired("message", &a->message,
-                      "Message: hex:.. / 0x.. / bits:.. / text");
+                      std::string("Message: ") + kMessageFormats);
   parser->AddRequired("output_path", &a->output_path, "Watermarked PLY");
   parser->Add("iterations", &a->iterations, "Encoder training iterations");
   parser->Add("gamma", &a->gamma, "Weight of the message loss");

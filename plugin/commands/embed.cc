@@ -24,6 +24,7 @@
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/embedder.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -117,7 +118,7 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("downscale", &a.workspace.downscale, "Image downscale: 1,2,4,8");
   parser.AddRequired("decoder", &a.decoder_path, "Decoder weights file");
   parser.AddRequired("message", &a.message,
-                     "Message: hex:.. / 0x.. / bits:.. / text");
+                     std::string("Message: ") + kMessageFormats);
   parser.AddRequired("output_path", &a.output_path, "Watermarked PLY");
   parser.Add("iterations", &a.iterations, "Fine-tuning iterations");
   parser.Add("gamma", &a.gamma, "Weight of the message loss");

@@ -20,6 +20,7 @@
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/evaluation.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -104,7 +105,7 @@ int RunEval(int argc, char** argv) {
              "Image downscale: 1,2,4,8");
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
   parser.AddRequired("message", &message,
-                     "Embedded message (hex:/0x/bits:/text)");
+                     std::string("Embedded message: ") + kMessageFormats);
   parser.Add("output_path", &output_path,
              "Report prefix: writes <prefix>.json and <prefix>.md");
   parser.Add("attacks", &model_attacks,

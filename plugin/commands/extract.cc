@@ -24,6 +24,7 @@
 #include "watermark/bit_decoder.h"
 #include "watermark/extractor.h"
 #include "watermark/image_attacks.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -71,7 +72,8 @@ int RunExtract(int argc, char** argv) {
   parser.Add("downscale", &workspace_options.downscale,
              "Image downscale: 1,2,4,8");
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
-  parser.Add("message", &message, "Claimed message (hex:/0x/bits:/text)");
+  parser.Add("message", &message,
+             std::string("Claimed message: ") + kMessageFormats);
   parser.Add("num_views", &num_views,
              "Render N free viewpoints between the cameras (0 = the "
              "workspace's cameras)");

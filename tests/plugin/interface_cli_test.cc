@@ -45,6 +45,40 @@ nlohmann::json ReadJson(const std::string& path) {
   return nlohmann::json::parse(in);
 }
 
+TEST(InterfaceCli, HelpVersionDefaultsAndMessageFormats) {
+  const auto help = RunCommand(WatergsBin() + " help embed");
+  ASSERT_EQ(help.exit_code, 0) << help.output;
+  EXPECT_EQ(help.output.rfind("Usage: watergs embed", 0), 0u) << help.output;
+  EXPECT_NE(help.output.find("text:TEXT"), std::string::npos) << help.output;
+  // As written, not as the nearest double prints with 17 digits.
+  EXPECT_NE(help.output.find("--gamma arg (=0.3)"), std::string::npos)
+      << help.output;
+  EXPECT_EQ(help.output.find("0.2999"), std::string::npos) << help.output;
+  ExpectOneLineError(RunCommand(WatergsBin() + " help nosuch"), "nosuch");
+
+  const auto version = RunCommand(WatergsBin() + " --version");
+  ASSERT_EQ(version.exit_code, 0) << version.output;
+  EXPECT_EQ(version.output.rfind("watergs ", 0), 0u) << version.output;
+  EXPECT_TRUE(std::isdigit(static_cast<unsigned char>(version.output[8])))
+      << version.output;
+}
+
+TEST(InterfaceCli, MessageTooLongStatesTheLimitInCharacters) {
+  TempDir dir("interface_message");
+  const Scene s = MakeScene(dir);
+  const std::string extract = WatergsBin() + " extract --input_path " + s.ply +
+                              " --workspace_path " + s.ws + " --decoder " +
+                              s.decoder + " --message ";
+  // The tiny decoder reads 16 bits.
+  ExpectOneLineError(RunCommand(extract + "text:abc"),
+                     "needs 24 bits but the decoder reads 16: at most 2 "
+                     "characters of ASCII text");
+  ExpectOneLineError(RunCommand(extract + "abc"), "at most 2 characters");
+  ExpectOneLineError(RunCommand(extract + "hex:a5c3f"), "at most 4 hex digits");
+  ExpectOneLineError(RunCommand(extract + "bits:00110011001100110"),
+                     "at most 16 bits");
+}
+
 // The model lives outside sparse/0: every command finds it with
 // --sparse_path (train also with its old name, on the command line and in a
 // project file).
