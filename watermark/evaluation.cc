@@ -251,7 +251,8 @@ std::string EvaluationToJson(const EvaluationReport& r) {
 
 std::string EvaluationToMarkdown(const EvaluationReport& r) {
   std::ostringstream out;
-  out << "## Image quality (mean over " << r.view_names.size() << " views)\n\n"
+  out << "## Image quality (mean over " << r.view_names.size()
+      << (r.view_names.size() == 1 ? " view" : " views") << ")\n\n"
       << "| Comparison | PSNR (dB) | SSIM | MS-SSIM | LPIPS (VGG) |\n"
       << "|---|---:|---:|---:|---:|\n";
   for (const QualityComparison* c :

@@ -173,13 +173,16 @@ int RunEval(int argc, char** argv) {
   const EvaluationReport report = EvaluateWatermark(
       *MakeRasterizer(parser.device()), raw.model, watermarked.model, views,
       eval_views, *decoder, bits, options);
+  // "1 held-out view", "9 views".
+  const std::string views_text = std::to_string(eval_views.size()) +
+                                 (which_views == "test" ? " held-out" : "") +
+                                 (eval_views.size() == 1 ? " view" : " views");
   std::string markdown =
       "# watergs eval\n\nRaw " + raw_path + " (" +
       std::to_string(report.raw_gaussians) + " Gaussians), watermarked " +
       input_path + " (" + std::to_string(report.watermarked_gaussians) +
-      " Gaussians), " + std::to_string(eval_views.size()) + " " +
-      (which_views == "test" ? "held-out " : "") + "views of " +
-      workspace_options.workspace_path + ".\n\n" + EvaluationToMarkdown(report);
+      " Gaussians), " + views_text + " of " + workspace_options.workspace_path +
+      ".\n\n" + EvaluationToMarkdown(report);
   std::cout << markdown;
   if (!output_path.empty()) {
     AtomicWriteFile(output_path + ".json", EvaluationToJson(report));

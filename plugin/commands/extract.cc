@@ -31,18 +31,36 @@ namespace {
 
 // "similarity:..." (or the bare numbers), or a file holding that line (the
 // <output>.transform.txt that `watergs attack` writes).
+// Errors name the option, or the file it named, not the attack parser's
+// --attack.
 SimilarityTransform ParseSceneTransform(const std::string& value) {
+  const std::string prefix = "similarity:";
   std::string text = value;
+  std::string source = "--scene_transform";
   if (std::filesystem::is_regular_file(value)) {
     const std::vector<uint8_t> bytes = ReadFileBytes(value);
     text.assign(bytes.begin(), bytes.end());
     while (!text.empty() && std::isspace((unsigned char)text.back())) {
       text.pop_back();
     }
+    source = value;
+  } else if (text.rfind(prefix, 0) != 0 &&
+             text.find_first_not_of("0123456789+-.,eE ") != std::string::npos) {
+    // Neither numbers nor an existing file: a mistyped file name.
+    FailAt(value,
+           "--scene_transform file not found (give the "
+           ".transform.txt that watergs attack wrote, or "
+           "similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ])");
   }
-  const std::string prefix = "similarity:";
   if (text.rfind(prefix, 0) == 0) text = text.substr(prefix.size());
-  return ParseSimilarity(text);
+  try {
+    return ParseSimilarity(text);
+  } catch (const Error& e) {
+    std::string message = e.what();
+    const std::string attack = "--attack: ";
+    if (message.rfind(attack, 0) == 0) message = message.substr(attack.size());
+    Fail(source + ": " + message);
+  }
 }
 
 int RunExtract(int argc, char** argv) {

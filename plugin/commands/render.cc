@@ -111,8 +111,12 @@ int RunRender(int argc, char** argv) {
       {"ssim", truth ? nlohmann::json(ssim_sum / n) : nlohmann::json()},
       {"views", per_view}};
   AtomicWriteFile(output_path + "/render_report.json", report.dump(2) + "\n");
+  // "all 9 views", "1 test view", "7 train views".
+  const size_t count = selected.size();
   const std::string views_text =
-      std::to_string(selected.size()) + " " + split + " views";
+      (split == "all" ? "all " + std::to_string(count)
+                      : std::to_string(count) + " " + split) +
+      (count == 1 ? " view" : " views");
   if (truth) {
     std::printf("render: %s, mean PSNR %.2f dB, SSIM %.4f -> %s\n",
                 views_text.c_str(), psnr_sum / n, ssim_sum / n,

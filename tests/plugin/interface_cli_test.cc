@@ -211,5 +211,69 @@ TEST(InterfaceCli, EvalSaysOnceThatLpipsIsSkippedAndRefusesAMissingPath) {
                      missing + ": LPIPS weights not found");
 }
 
+// Errors name the option or file at fault, in printable text, and counts
+// read as English.
+TEST(InterfaceCli, ErrorsNameTheRightThingReadably) {
+  TempDir dir("interface_errors");
+  const Scene s = MakeScene(dir);
+  const std::string extract = WatergsBin() + " extract --input_path " + s.ply +
+                              " --workspace_path " + s.ws + " --decoder " +
+                              s.decoder + " --scene_transform ";
+  const std::string missing = dir / "moved.ply.transform.txt";
+  const auto no_file = RunCommand(extract + missing);
+  ExpectOneLineError(no_file, missing + ": --scene_transform file not found");
+  EXPECT_EQ(no_file.output.find("--attack"), std::string::npos)
+      << no_file.output;
+  const auto bad_number = RunCommand(extract + "similarity:1,x,0,0,1");
+  ExpectOneLineError(bad_number, "--scene_transform: similarity: 'x'");
+  EXPECT_EQ(bad_number.output.find("--attack"), std::string::npos);
+  AtomicWriteFile(dir / "bad.transform.txt", std::string("similarity:1,2\n"));
+  ExpectOneLineError(RunCommand(extract + (dir / "bad.transform.txt")),
+                     dir / "bad.transform.txt: similarity:1,2");
+
+  // A binary PLY whose header lacks end_header: the bytes are escaped.
+  std::string bytes =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 2\n"
+      "property float x\n";
+  for (int b = 0; b < 256; ++b) {
+    if (b != '\n') bytes += static_cast<char>(b);
+  }
+  bytes += "\n";
+  const std::string ply = dir / "no_end_header.ply";
+  AtomicWriteFile(ply, bytes);
+  const auto header =
+      RunCommand(WatergsBin() + " ply_info --input_path " + ply);
+  ExpectOneLineError(header, ply + ": binary bytes in the PLY header");
+  EXPECT_NE(header.output.find("no end_header"), std::string::npos);
+  EXPECT_NE(header.output.find("\\x1b"), std::string::npos) << header.output;
+  for (size_t k = 0; k + 1 < header.output.size(); ++k) {
+    const auto c = static_cast<unsigned char>(header.output[k]);
+    EXPECT_TRUE(c >= 0x20 && c < 0x7f) << "byte " << int(c) << " at " << k;
+  }
+
+  // Counts: "all 6 views", "1 test view", "1 held-out view".
+  const std::string render = WatergsBin() + " render --input_path " + s.ply +
+                             " --workspace_path " + s.ws + " --output_path " +
+                             (dir / "r") + " --split ";
+  const auto all = RunCommand(render + "all");
+  EXPECT_NE(all.output.find("render: all 6 views, mean PSNR"),
+            std::string::npos)
+      << all.output;
+  const auto test = RunCommand(render + "test");
+  EXPECT_NE(test.output.find("render: 1 test view, mean PSNR"),
+            std::string::npos)
+      << test.output;
+  const auto eval = RunCommand(
+      WatergsBin() + " eval --raw_path " + s.ply + " --input_path " + s.ply +
+      " --workspace_path " + s.ws + " --decoder " + s.decoder +
+      " --message hex:a5c3 --attacks identity --image_attacks '' "
+      "--lpips_weights ''");
+  ASSERT_EQ(eval.exit_code, 0) << eval.output;
+  EXPECT_NE(eval.output.find("Gaussians), 1 held-out view of"),
+            std::string::npos)
+      << eval.output;
+  EXPECT_NE(eval.output.find("(mean over 1 view)"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace watergs
