@@ -69,6 +69,8 @@ struct TrainArgs {
   bool compact_optimizer = false;
   std::string moment_precision = "float32";
   bool overwrite = false;
+  // 0: --iterations.
+  int64_t position_lr_max_steps = 0;
 };
 
 void Validate(const TrainArgs& a) {
@@ -85,6 +87,9 @@ void Validate(const TrainArgs& a) {
   if (a.num_threads < 0) Fail("--num_threads must be >= 0 (0 = all cores)");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
   if (a.log_every < 1) Fail("--log_every must be >= 1");
+  if (a.position_lr_max_steps < 0) {
+    Fail("--position_lr_max_steps must be >= 0 (0 = --iterations)");
+  }
 }
 
 // The files a run writes into its output folder.
@@ -190,7 +195,16 @@ int RunTrain(int argc, char** argv) {
   parser.AddFlag("overwrite", &a.overwrite,
                  "Replace the earlier run in --output_path (its checkpoint "
                  "is deleted when training starts)");
-  parser.Add("iterations", &a.iterations, "Training iterations");
+  parser.Add("iterations", &a.iterations,
+             "Training iterations. The position learning rate decays over "
+             "--position_lr_max_steps, by default this many, so runs of "
+             "different lengths differ from the first iteration on; with "
+             "--position_lr_max_steps fixed, a shorter run is the start of "
+             "a longer one (up to its last iteration, which takes no step)");
+  parser.Add("position_lr_max_steps", &a.position_lr_max_steps,
+             "Iterations over which the position learning rate decays from "
+             "1.6e-4 to 1.6e-6 (times the scene extent); 0 = --iterations "
+             "(Inria's default is a fixed 30000)");
   parser.Add("downscale", &a.workspace.downscale,
              "Image downscale factor: 1, 2, 4 or 8");
   parser.Add("sh_degree", &a.sh_degree, "Highest SH degree (0-3)");
@@ -260,7 +274,8 @@ int RunTrain(int argc, char** argv) {
   options.iterations = a.iterations;
   options.background = background;
   options.seed = static_cast<uint64_t>(a.seed);
-  options.adam.position_lr_max_steps = a.iterations;
+  options.adam.position_lr_max_steps =
+      a.position_lr_max_steps > 0 ? a.position_lr_max_steps : a.iterations;
   options.adam.compact_moments = a.compact_optimizer;
   // The 8-bit compact moments replace either precision.
   options.adam.half_moments =
