@@ -49,10 +49,10 @@ std::vector<size_t> SelectViews(const Workspace& workspace,
 }
 
 // Loads the LPIPS weights. Weights missing at the default path (relative to
-// the current folder) skip LPIPS, said once up front and in `note`; missing
-// at a path the user gave is an error.
+// the current folder) skip LPIPS: `skipped` says why in a line for the user,
+// `note` in the report; missing at a path the user gave is an error.
 std::unique_ptr<Lpips> LoadLpips(const std::string& path, bool given,
-                                 std::string* note) {
+                                 std::string* note, std::string* skipped) {
   if (path.empty()) {
     *note = "not computed (--lpips_weights is empty)";
     return nullptr;
@@ -68,7 +68,7 @@ std::unique_ptr<Lpips> LoadLpips(const std::string& path, bool given,
                             " (relative to the current folder; " + fetch +
                             ", --lpips_weights names another file)";
     *note = "not computed: " + why;
-    std::cerr << "eval: LPIPS skipped: " << why << "\n";
+    *skipped = "eval: LPIPS skipped: " + why;
     return nullptr;
   }
   return Lpips::Load(path);
@@ -152,8 +152,14 @@ int RunEval(int argc, char** argv) {
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(decoder_path, parser.device());
   const Bits bits = ParseMessage(message, decoder->NumBits());
+  // What is left out, said once when every input has been accepted (an
+  // error stays the only line).
+  std::vector<std::string> notices;
+  std::string lpips_skipped;
   std::unique_ptr<Lpips> lpips =
-      LoadLpips(lpips_path, parser.Given("lpips_weights"), &options.lpips_note);
+      LoadLpips(lpips_path, parser.Given("lpips_weights"), &options.lpips_note,
+                &lpips_skipped);
+  if (!lpips_skipped.empty()) notices.push_back(lpips_skipped);
   options.lpips = lpips.get();
   // Without images the renders are still compared with each other and the
   // watermark read; only the comparisons with ground truth are left empty.
@@ -164,11 +170,12 @@ int RunEval(int argc, char** argv) {
     options.ground_truth_note = "none (no image folder at " +
                                 workspace.options().image_path +
                                 "): only the raw renders are compared";
-    std::cerr << "eval: no ground truth: " << options.ground_truth_note << "\n";
+    notices.push_back("eval: no ground truth: " + options.ground_truth_note);
   }
   const WorkspaceViews views(workspace);
   const std::vector<size_t> eval_views =
       SelectViews(workspace, which_views, max_views);
+  for (const std::string& notice : notices) std::cerr << notice << "\n";
 
   const EvaluationReport report = EvaluateWatermark(
       *MakeRasterizer(parser.device()), raw.model, watermarked.model, views,

@@ -60,16 +60,16 @@ int RunRender(int argc, char** argv) {
   ws.images_optional = true;  // renders need only the cameras
   const Workspace workspace = Workspace::Open(ws);
   const bool truth = workspace.has_images();
-  if (!truth) {
-    std::printf("render: no image folder at %s: PNGs only, no PSNR/SSIM\n",
-                workspace.options().image_path.c_str());
-  }
   const WorkspaceViews views(workspace);
   std::vector<size_t> selected;
   if (split == "test") selected = workspace.TestViews(true);
   if (split == "train") selected = workspace.TrainViews(true);
   if (split == "all") selected = workspace.TrainViews(false);
   CreateDirectories(output_path);
+  if (!truth) {
+    std::printf("render: no image folder at %s: PNGs only, no PSNR/SSIM\n",
+                workspace.options().image_path.c_str());
+  }
 
   auto rasterizer = MakeRasterizer(parser.device());
   RenderOptions options;
