@@ -11,6 +11,8 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "gaussian/error.h"
 
@@ -68,15 +70,21 @@ std::vector<uint8_t> ReadFileBytes(const std::string& path) {
   return bytes;
 }
 
-void AtomicWriteFile(const std::string& path,
-                     const std::function<void(std::ostream&)>& writer) {
+namespace {
+
+// The folder `path` is written into ("." for a bare name).
+std::filesystem::path FolderOf(const std::string& path) {
   const std::filesystem::path target(path);
-  const std::filesystem::path dir =
-      target.has_parent_path() ? target.parent_path() : ".";
+  return target.has_parent_path() ? target.parent_path() : ".";
+}
+
+// Fills a new temporary next to `path` with `writer`, flushed and fsync'ed;
+// returns its name. On any failure the temporary is removed and Error names
+// `path`.
+std::string WriteTemporary(const std::string& path,
+                           const std::function<void(std::ostream&)>& writer) {
   std::error_code ec;
-  if (!std::filesystem::is_directory(dir, ec)) {
-    FailAt(path, "output folder " + dir.string() + " does not exist");
-  }
+  CheckOutputFile(path);
   const std::string tmp = TemporaryPathFor(path);
   try {
     {
@@ -98,12 +106,52 @@ void AtomicWriteFile(const std::string& path,
       FailAt(path,
              std::string("cannot flush to disk: ") + std::strerror(sync_error));
     }
-    std::filesystem::rename(tmp, target, ec);
-    if (ec) FailAt(path, "cannot rename temporary into place: " + ec.message());
-    FsyncPath(dir.string(), O_RDONLY | O_DIRECTORY);
-    RemoveStaleTemporaries(target, dir);
   } catch (...) {
     std::filesystem::remove(tmp, ec);
+    throw;
+  }
+  return tmp;
+}
+
+// Renames a finished temporary over `path` and syncs the folder.
+void CommitTemporary(const std::string& tmp, const std::string& path) {
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    FailAt(path, "cannot rename temporary into place: " + ec.message());
+  }
+  FsyncPath(FolderOf(path).string(), O_RDONLY | O_DIRECTORY);
+  RemoveStaleTemporaries(path, FolderOf(path));
+}
+
+}  // namespace
+
+void AtomicWriteFile(const std::string& path,
+                     const std::function<void(std::ostream&)>& writer) {
+  CommitTemporary(WriteTemporary(path, writer), path);
+}
+
+void AtomicWriteFiles(
+    const std::vector<std::pair<std::string, std::string>>& files) {
+  // Every target is checked and every temporary written before any file is
+  // replaced: a failure on the last file leaves all of them as they were.
+  std::vector<std::string> temporaries;
+  try {
+    for (const auto& [path, bytes] : files) {
+      temporaries.push_back(WriteTemporary(path, [&](std::ostream& out) {
+        out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+      }));
+    }
+    for (size_t k = 0; k < files.size(); ++k) {
+      CommitTemporary(temporaries[k], files[k].first);
+      temporaries[k].clear();
+    }
+  } catch (...) {
+    std::error_code ec;
+    for (const std::string& tmp : temporaries) {
+      if (!tmp.empty()) std::filesystem::remove(tmp, ec);
+    }
     throw;
   }
 }
@@ -112,6 +160,21 @@ void AtomicWriteFile(const std::string& path, const std::string& bytes) {
   AtomicWriteFile(path, [&](std::ostream& out) {
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   });
+}
+
+void CheckOutputFile(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::path dir = FolderOf(path);
+  if (!std::filesystem::is_directory(dir, ec)) {
+    FailAt(path, "output folder " + dir.string() + " does not exist");
+  }
+  if (std::filesystem::is_directory(path, ec)) {
+    FailAt(path, "is a directory, expected a file");
+  }
+  if (::access(dir.c_str(), W_OK) != 0) {
+    FailAt(path, "output folder " + dir.string() +
+                     " is not writable: " + std::strerror(errno));
+  }
 }
 
 void CreateDirectories(const std::string& path) {

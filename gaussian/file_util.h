@@ -5,6 +5,7 @@
 #include <functional>
 #include <iosfwd>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace watergs {
@@ -22,6 +23,18 @@ void AtomicWriteFile(const std::string& path,
 
 // Convenience overload for an in-memory buffer.
 void AtomicWriteFile(const std::string& path, const std::string& bytes);
+
+// Writes several files (path, bytes) as a set: every temporary is written
+// and fsync'ed before the first rename, so an error on any file (a full
+// disk, a folder in the way) leaves all of them untouched. Only a crash
+// during the renames themselves (microseconds) can leave a mix.
+void AtomicWriteFiles(
+    const std::vector<std::pair<std::string, std::string>>& files);
+
+// Throws the Error that writing `path` would meet later: its folder missing
+// or not writable, or a folder in its place. Commands check their outputs
+// with it before the work, so that a mistyped path fails at once.
+void CheckOutputFile(const std::string& path);
 
 // Creates a directory and its parents; throws Error on failure.
 void CreateDirectories(const std::string& path);

@@ -128,6 +128,23 @@ bool ClassifyProperty(const std::string& name, int num_rest, Role* role) {
   return true;
 }
 
+// `text` with every byte outside printable ASCII written as \xNN: errors
+// quote header text, which in a damaged or non-PLY file may be binary (NUL
+// included), and a PLY header is ASCII.
+std::string Ascii(const std::string& text) {
+  static const char* kHex = "0123456789abcdef";
+  std::string out;
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte >= 0x7f) {
+      out += std::string("\\x") + kHex[byte >> 4] + kHex[byte & 15];
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
 // Roles of all properties (extras numbered in file order). Throws Error at
 // `path` if a model property is missing, mistyped or out of range.
 std::vector<Role> ResolveRoles(const std::string& path,
@@ -145,7 +162,7 @@ std::vector<Role> ResolveRoles(const std::string& path,
   for (size_t p = 0; p < properties.size(); ++p) {
     const auto& prop = properties[p];
     if (!ClassifyProperty(prop.name, num_rest, &roles[p])) {
-      FailAt(path, "property " + prop.name + " is out of range for " +
+      FailAt(path, "property " + Ascii(prop.name) + " is out of range for " +
                        std::to_string(num_rest) +
                        " f_rest properties (expected f_rest_0..f_rest_" +
                        std::to_string(num_rest - 1) + ")");
@@ -156,11 +173,12 @@ std::vector<Role> ResolveRoles(const std::string& path,
     }
     ++model_properties;
     if (!filled.insert({roles[p].field, roles[p].offset}).second) {
-      FailAt(path, "property " + prop.name +
+      FailAt(path, "property " + Ascii(prop.name) +
                        " duplicates another property's parameter");
     }
     if (prop.type != PlyType::kFloat32 && prop.type != PlyType::kFloat64) {
-      FailAt(path, "property " + prop.name + " has type " + prop.type_name +
+      FailAt(path, "property " + Ascii(prop.name) + " has type " +
+                       Ascii(prop.type_name) +
                        "; 3DGS parameters must be float or double");
     }
   }
@@ -335,7 +353,7 @@ void ParseFormatLine(const std::string& path,
   } else if (words[1] == "ascii") {
     layout->format = PlyFormat::kAscii;
   } else {
-    FailAt(path, "unknown PLY format '" + words[1] + "'");
+    FailAt(path, "unknown PLY format '" + Ascii(words[1]) + "'");
   }
   layout->format_version = words[2];
 }
@@ -346,19 +364,20 @@ void ParsePropertyLine(const std::string& path,
   if (words.size() >= 2 && words[1] == "list") {
     FailAt(
         path,
-        "list property '" + words.back() +
+        "list property '" + Ascii(words.back()) +
             "' in element vertex is not supported (3DGS vertices are scalars)");
   }
   if (words.size() != 3) FailAt(path, "malformed property line in PLY header");
   PlyProperty prop;
   if (!ParseTypeName(words[1], &prop.type)) {
-    FailAt(path, "unknown type '" + words[1] + "' of property " + words[2]);
+    FailAt(path, "unknown type '" + Ascii(words[1]) + "' of property " +
+                     Ascii(words[2]));
   }
   prop.type_name = words[1];
   prop.name = words[2];
   for (const auto& other : layout->properties) {
     if (other.name == prop.name)
-      FailAt(path, "property " + prop.name + " declared twice");
+      FailAt(path, "property " + Ascii(prop.name) + " declared twice");
   }
   layout->properties.push_back(prop);
 }
@@ -400,11 +419,11 @@ ParsedHeader ParseHeader(const std::string& path, std::istream& in) {
         FailAt(path, "malformed element line in PLY header");
       if (words[1] != "vertex" || have_vertex) {
         FailAt(path,
-               "element '" + words[1] +
+               "element '" + Ascii(words[1]) +
                    "' is not supported (a 3DGS PLY has one 'vertex' element)");
       }
       if (!ParseUint(words[2], &header.vertex_count)) {
-        FailAt(path, "bad vertex count '" + words[2] + "'");
+        FailAt(path, "bad vertex count '" + Ascii(words[2]) + "'");
       }
       have_vertex = true;
       structural = 2;
@@ -416,7 +435,15 @@ ParsedHeader ParseHeader(const std::string& path, std::istream& in) {
     } else if (key == "end_header") {
       break;
     } else {
-      FailAt(path, "unknown PLY header line '" + line.substr(0, 60) + "'");
+      const bool binary = std::any_of(line.begin(), line.end(), [](char c) {
+        return static_cast<unsigned char>(c) < 0x20 ||
+               static_cast<unsigned char>(c) >= 0x7f;
+      });
+      FailAt(path,
+             (binary ? "binary bytes in the PLY header '"
+                     : "unknown PLY header line '") +
+                 Ascii(line.substr(0, 60)) + "'" +
+                 (binary ? " (no end_header before the vertex data?)" : ""));
     }
   }
   if (!have_vertex) FailAt(path, "PLY header declares no vertex element");
@@ -513,7 +540,7 @@ void ReadAsciiData(const std::string& path, std::istream& in, uint64_t n,
         value = std::numeric_limits<double>::infinity();
       } else if (ec != std::errc()) {
         FailAt(path, "bad ascii value at vertex " + std::to_string(v) +
-                         ", property " + layout.properties[p].name);
+                         ", property " + Ascii(layout.properties[p].name));
       }
       sink.Put(v, p, value);
       cur = next;
@@ -722,9 +749,9 @@ PlyData ReadPly(const std::string& path, const PlyReadOptions& options) {
   if (!in) FailAt(path, std::string("cannot open: ") + std::strerror(errno));
 
   ParsedHeader header = ParseHeader(path, in);
+  const std::vector<Role> roles = ResolveRoles(path, header.layout.properties);
   data.layout = std::move(header.layout);
   data.header_size = header.header_size;
-  const std::vector<Role> roles = ResolveRoles(path, data.layout.properties);
   CheckVertexCount(path, header.vertex_count, data.file_size - data.header_size,
                    data.layout);
 
@@ -744,7 +771,7 @@ PlyData ReadPly(const std::string& path, const PlyReadOptions& options) {
     FailAt(path, std::to_string(data.non_finite_count) +
                      " NaN/Inf values (first: vertex " +
                      std::to_string(vertex) + ", property " +
-                     data.layout.properties[property].name + ")");
+                     Ascii(data.layout.properties[property].name) + ")");
   }
   return data;
 }

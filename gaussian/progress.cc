@@ -2,11 +2,44 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
 
 namespace watergs {
+
+void EtaEstimator::Add(int64_t done, double seconds, double load) {
+  latest_ = {done, seconds, load};
+  if (samples_.empty() ||
+      seconds - samples_.back().seconds >= window_seconds_ / 64) {
+    samples_.push_back(latest_);
+  }
+  // Keep one sample at or beyond the window's start.
+  while (samples_.size() > 2 &&
+         seconds - samples_[1].seconds >= window_seconds_) {
+    samples_.pop_front();
+  }
+}
+
+double EtaEstimator::Remaining(int64_t total, int64_t grows_until) const {
+  if (samples_.empty()) return 0;
+  const Sample& first = samples_.front();
+  const int64_t steps = latest_.done - first.done;
+  const double seconds = latest_.seconds - first.seconds;
+  if (steps <= 0 || !(seconds > 0)) return 0;
+  // Seconds per step and unit of load, at the window's mean load.
+  const double mean_load = std::max(0.5 * (first.load + latest_.load), 1e-9);
+  const double cost = seconds / (double(steps) * mean_load);
+  const double growth = std::max(0.0, (latest_.load - first.load) / steps);
+  // Steps left while the load grows (a), then at its final value (b).
+  const double left = double(std::max<int64_t>(0, total - latest_.done));
+  const double a = std::clamp(double(grows_until - latest_.done), 0.0, left);
+  const double b = left - a;
+  const double load_sum =
+      latest_.load * left + growth * a * (a + 1) / 2 + growth * a * b;
+  return cost * load_sum;
+}
 
 ProgressBar::ProgressBar(std::string label, int64_t total, int64_t start)
     : label_(std::move(label)),
@@ -22,8 +55,24 @@ double ProgressBar::ElapsedSeconds() const {
       .count();
 }
 
+void ProgressBar::SetLoad(double load, int64_t grows_until) {
+  load_ = load;
+  grows_until_ = grows_until;
+}
+
+void ProgressBar::Print(const std::string& line) {
+  if (interactive_) {
+    std::cerr << "\r\033[K";
+    std::cerr.flush();
+  }
+  std::cout << line << "\n";
+  std::cout.flush();
+  last_draw_ = {};  // redraw at the next Update
+}
+
 void ProgressBar::Update(int64_t done, const std::string& status) {
   const auto now = std::chrono::steady_clock::now();
+  eta_.Add(done, ElapsedSeconds(), load_);
   // Terminals get 5 redraws a second; logs one line every 10 seconds.
   const auto period = interactive_ ? std::chrono::milliseconds(200)
                                    : std::chrono::milliseconds(10000);
@@ -40,7 +89,9 @@ void ProgressBar::Draw(int64_t done, const std::string& status,
                        bool final_line) {
   const double elapsed = ElapsedSeconds();
   const double rate = elapsed > 0 ? (done - start_) / elapsed : 0.0;
-  const double eta = rate > 0 ? (total_ - done) / rate : 0.0;
+  double eta = eta_.Remaining(total_, grows_until_);
+  // Before two samples: the rate since the start.
+  if (!(eta > 0) && rate > 0) eta = (total_ - done) / rate;
   const int width = 24;
   const int filled =
       total_ > 0 ? static_cast<int>(width * double(done) / total_) : width;

@@ -5,9 +5,37 @@
 
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <string>
 
 namespace watergs {
+
+// Remaining time of a loop whose steps cost in proportion to a load (for
+// training, the Gaussian count) that may grow for a while. The cost per step
+// and unit of load is that of the recent steps (the last `window_seconds`),
+// not the average since the start, which early cheap steps drag down; the
+// load is extrapolated at its recent growth per step until `grows_until`,
+// then held. With the default load of 1 this is the recent rate.
+class EtaEstimator {
+ public:
+  explicit EtaEstimator(double window_seconds = 30)
+      : window_seconds_(window_seconds) {}
+  // `done` steps were complete `seconds` after the start, at `load`.
+  void Add(int64_t done, double seconds, double load = 1);
+  // Seconds until `total` steps are done; 0 until two samples differ.
+  double Remaining(int64_t total, int64_t grows_until = 0) const;
+
+ private:
+  struct Sample {
+    int64_t done;
+    double seconds, load;
+  };
+  double window_seconds_;
+  // Samples at least window/64 apart, the oldest just beyond the window.
+  std::deque<Sample> samples_;
+  // The latest sample (samples_ may hold an older one at its end).
+  Sample latest_{0, 0, 0};
+};
 
 class ProgressBar {
  public:
@@ -15,6 +43,14 @@ class ProgressBar {
   ProgressBar(std::string label, int64_t total, int64_t start = 0);
   // Marks step `done` complete; `status` is appended to the line.
   void Update(int64_t done, const std::string& status = "");
+  // The work of a step is proportional to `load` (the Gaussian count),
+  // which grows until step `grows_until`: the ETA extrapolates it
+  // (EtaEstimator). Set before each Update; the default load is 1.
+  void SetLoad(double load, int64_t grows_until);
+  // Prints `line` on stdout on a line of its own (a result worth keeping,
+  // not progress): on a terminal the bar is cleared first and redrawn at the
+  // next Update.
+  void Print(const std::string& line);
   // Prints the final line with the total time.
   void Finish(const std::string& status = "");
   // Seconds since construction.
@@ -30,6 +66,9 @@ class ProgressBar {
   std::chrono::steady_clock::time_point last_draw_;
   // True when stderr is a terminal: redraw in place instead of new lines.
   bool interactive_;
+  EtaEstimator eta_;
+  double load_ = 1;
+  int64_t grows_until_ = 0;
 };
 
 // Exponential moving average of a figure shown on a progress line (a loss,

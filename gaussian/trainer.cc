@@ -479,12 +479,24 @@ void Trainer::Run() {
       last_flush = Clock::now();
     }
     if (bar) {
+      if (test_now) {
+        // A result worth keeping: its own line, not the overwritten bar.
+        char line[160];
+        std::snprintf(line, sizeof(line),
+                      "train: iteration %lld: held-out PSNR %.2f dB, SSIM "
+                      "%.4f, L1 %.4f (%zu %s)",
+                      static_cast<long long>(it), test.psnr, test.ssim, test.l1,
+                      test.num_views, test.num_views == 1 ? "view" : "views");
+        bar->Print(line);
+      }
       char status[96];
       std::snprintf(status, sizeof(status), "loss %.4f  %zu Gaussians",
                     loss.value(), stats.num_gaussians);
-      std::string line = status;
-      if (test_now) line += "  test PSNR " + std::to_string(test.psnr);
-      bar->Update(it, line);
+      // Steps cost in proportion to the Gaussians, which densification
+      // keeps adding until densify_until_iter.
+      bar->SetLoad(double(stats.num_gaussians),
+                   options_.density.densify_until_iter);
+      bar->Update(it, status);
     }
   }
   FlushLog();

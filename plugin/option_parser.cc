@@ -1,5 +1,6 @@
 #include "plugin/option_parser.h"
 
+#include <charconv>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -51,6 +52,38 @@ OptionParser::OptionParser(std::string command, std::string summary)
       "GPU (README, CUDA backend)");
 }
 
+std::string OptionParser::ShortestText(double value) {
+  char text[64];
+  const auto end = std::to_chars(text, text + sizeof(text), value).ptr;
+  return std::string(text, end);
+}
+
+std::string OptionParser::ShortestText(float value) {
+  char text[64];
+  const auto end = std::to_chars(text, text + sizeof(text), value).ptr;
+  return std::string(text, end);
+}
+
+void OptionParser::AddAlias(const std::string& alias, const std::string& name) {
+  aliases_[alias] = name;
+}
+
+std::vector<std::string> OptionParser::ResolveAliases(int argc,
+                                                      char** argv) const {
+  std::vector<std::string> args(argv, argv + argc);
+  for (size_t k = 1; k < args.size(); ++k) {
+    for (const auto& [alias, name] : aliases_) {
+      const std::string token = "--" + alias;
+      if (args[k] == token) {
+        args[k] = "--" + name;
+      } else if (args[k].rfind(token + "=", 0) == 0) {
+        args[k] = "--" + name + args[k].substr(token.size());
+      }
+    }
+  }
+  return args;
+}
+
 void OptionParser::AddFlag(const std::string& name, bool* value,
                            const std::string& help) {
   options_.add_options()(name.c_str(), po::bool_switch(value), help.c_str());
@@ -61,13 +94,22 @@ std::string OptionParser::Help() const {
   out << "Usage: watergs " << command_ << " [options]\n"
       << summary_ << "\n\n"
       << options_;
+  if (!aliases_.empty()) out << "\nAliases:\n";
+  for (const auto& [alias, name] : aliases_) {
+    out << "  --" << alias << " = --" << name << "\n";
+  }
   return out.str();
 }
 
 bool OptionParser::Parse(int argc, char** argv) {
   po::variables_map vm;
   try {
-    po::store(po::parse_command_line(argc, argv, options_), vm);
+    const std::vector<std::string> args = ResolveAliases(argc, argv);
+    po::store(po::command_line_parser(
+                  std::vector<std::string>(args.begin() + 1, args.end()))
+                  .options(options_)
+                  .run(),
+              vm);
     if (vm.count("help")) {
       std::cout << Help();
       return false;
@@ -77,7 +119,25 @@ bool OptionParser::Parse(int argc, char** argv) {
       if (!std::filesystem::is_regular_file(ini)) {
         FailAt(ini, "project file not found");
       }
-      std::ifstream in(ini);
+      // Aliases as keys of `name = value` lines are renamed too.
+      std::ifstream file(ini);
+      std::stringstream in;
+      for (std::string line; std::getline(file, line);) {
+        const size_t start = line.find_first_not_of(" \t");
+        for (const auto& [alias, name] : aliases_) {
+          if (start == std::string::npos ||
+              line.compare(start, alias.size(), alias) != 0) {
+            continue;
+          }
+          const size_t after =
+              line.find_first_not_of(" \t", start + alias.size());
+          if (after != std::string::npos && line[after] == '=') {
+            line.replace(start, alias.size(), name);
+            break;
+          }
+        }
+        in << line << "\n";
+      }
       try {
         po::store(
             po::parse_config_file(in, options_, /*allow_unregistered=*/false),
@@ -87,6 +147,9 @@ bool OptionParser::Parse(int argc, char** argv) {
       }
     }
     po::notify(vm);
+    for (const auto& [name, value] : vm) {
+      if (!value.defaulted()) given_.insert(name);
+    }
   } catch (po::error& e) {
     Fail("watergs " + command_ + ": " + Message(e) + " (see `watergs " +
          command_ + " -h`)");

@@ -689,20 +689,18 @@ std::string Points3DBinary(const Reconstruction& reconstruction) {
 void WriteReconstruction(const Reconstruction& reconstruction,
                          const std::string& model_path, ModelFormat format) {
   CreateDirectories(model_path);
+  // As a set: a failure on points3D must not leave new cameras and images
+  // beside an old points3D (a model that reads but is wrong).
   if (format == ModelFormat::kBinary) {
-    AtomicWriteFile(PathIn(model_path, "cameras.bin"),
-                    CamerasBinary(reconstruction));
-    AtomicWriteFile(PathIn(model_path, "images.bin"),
-                    ImagesBinary(reconstruction));
-    AtomicWriteFile(PathIn(model_path, "points3D.bin"),
-                    Points3DBinary(reconstruction));
+    AtomicWriteFiles(
+        {{PathIn(model_path, "cameras.bin"), CamerasBinary(reconstruction)},
+         {PathIn(model_path, "images.bin"), ImagesBinary(reconstruction)},
+         {PathIn(model_path, "points3D.bin"), Points3DBinary(reconstruction)}});
   } else {
-    AtomicWriteFile(PathIn(model_path, "cameras.txt"),
-                    CamerasText(reconstruction));
-    AtomicWriteFile(PathIn(model_path, "images.txt"),
-                    ImagesText(reconstruction));
-    AtomicWriteFile(PathIn(model_path, "points3D.txt"),
-                    Points3DText(reconstruction));
+    AtomicWriteFiles(
+        {{PathIn(model_path, "cameras.txt"), CamerasText(reconstruction)},
+         {PathIn(model_path, "images.txt"), ImagesText(reconstruction)},
+         {PathIn(model_path, "points3D.txt"), Points3DText(reconstruction)}});
   }
 }
 

@@ -31,7 +31,8 @@ Reconstruction ReadReconstructionBinary(const std::string& model_path);
 Reconstruction ReadReconstructionText(const std::string& model_path);
 
 // Writes cameras/images/points3D in `format` into `model_path` (created if
-// missing), each file atomically. Only registered images are written.
+// missing) as a set (AtomicWriteFiles): on an error none of the three is
+// replaced. Only registered images are written.
 void WriteReconstruction(const Reconstruction& reconstruction,
                          const std::string& model_path, ModelFormat format);
 

@@ -161,7 +161,7 @@ fs::path WorkspaceOfModel(const std::string& input_path) {
 WorkspaceOptions WithDefaults(const WorkspaceOptions& options) {
   WorkspaceOptions filled = options;
   if (filled.workspace_path.empty() && filled.input_path.empty()) {
-    Fail("workspace: give --workspace_path or --input_path");
+    Fail("workspace: give --workspace_path or --sparse_path");
   }
   if (filled.downscale < 1) Fail("workspace: downscale must be >= 1");
   const fs::path root = filled.workspace_path.empty()
@@ -264,7 +264,8 @@ Workspace Workspace::Open(const WorkspaceOptions& options) {
     opts.image_path = (fs::path(opts.undistorted_path) / "images").string();
     workspace.reconstruction_ = ReadReconstruction(workspace.model_path_);
   }
-  if (!fs::is_directory(opts.image_path)) {
+  workspace.has_images_ = fs::is_directory(opts.image_path);
+  if (!workspace.has_images_ && !opts.images_optional) {
     FailAt(opts.image_path, "image folder not found");
   }
   const Reconstruction& model = workspace.reconstruction_;
@@ -273,8 +274,10 @@ Workspace Workspace::Open(const WorkspaceOptions& options) {
             [&](image_t a, image_t b) {
               return model.GetImage(a).name < model.GetImage(b).name;
             });
-  CheckViewImages(model, workspace.views_, opts.image_path,
-                  workspace.model_path_);
+  if (workspace.has_images_) {
+    CheckViewImages(model, workspace.views_, opts.image_path,
+                    workspace.model_path_);
+  }
   for (const auto& [id, camera] : model.Cameras()) {
     workspace.pinhole_cameras_[id] = UndistortCamera(camera);
   }

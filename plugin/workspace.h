@@ -24,6 +24,11 @@ struct WorkspaceOptions {
   // Image folder; default <workspace>/images, where <workspace> is, if not
   // given, the folder holding the model's sparse/ (or the model's parent).
   std::string image_path;
+  // Whether the image folder may be missing, for commands that only render
+  // the cameras or can do without ground truth: has_images() then tells,
+  // and a view's image is read only when asked for. A folder that exists is
+  // checked as always.
+  bool images_optional = false;
   // 1, 2, 4, 8: use <image_path>_<k> (e.g. <workspace>/images_4) if it
   // exists, else resize on load (INTER_AREA).
   int downscale = 1;
@@ -76,6 +81,8 @@ class Workspace {
   // Whether any camera had distortion (and is rendered through an
   // undistorted pinhole camera).
   bool undistorted() const { return undistorted_; }
+  // Whether the image folder exists (always, unless images_optional).
+  bool has_images() const { return has_images_; }
 
  private:
   Workspace() = default;
@@ -90,6 +97,7 @@ class Workspace {
   // Per camera id: the pinhole camera it is rendered with (full size).
   std::map<camera_t, Camera> pinhole_cameras_;
   bool undistorted_ = false;
+  bool has_images_ = false;
   std::unique_ptr<ImageLoader> loader_;
 };
 

@@ -101,6 +101,8 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
   report.message = message;
   report.thresholds = options.thresholds;
   report.lpips_note = options.lpips ? "" : options.lpips_note;
+  report.ground_truth_note =
+      options.ground_truth ? "" : options.ground_truth_note;
   report.vs_ground_truth.label = "watermarked vs ground truth";
   report.vs_raw.label = "watermarked vs raw renders";
   report.raw_vs_ground_truth.label = "raw vs ground truth";
@@ -123,9 +125,6 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
     report.lpips_note = "not computed: images smaller than 16x16 pixels";
   }
   for (size_t k = 0; k < n; ++k) {
-    const std::shared_ptr<const ImageRGB> truth_image =
-        views.Image(eval_views[k]);
-    const ImageRGB& truth = *truth_image;
     const ImageRGB wm =
         RenderClamped(rasterizer, watermarked, cameras[k], options.background);
     const ImageRGB base =
@@ -134,14 +133,27 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
     if (lpips) {
       f_wm = lpips->Extract(wm);
       f_base = lpips->Extract(base);
-      f_truth = lpips->Extract(truth);
     }
-    Accumulate(Compare(wm, truth, lpips, &f_wm, &f_truth), n,
-               &report.vs_ground_truth);
     Accumulate(Compare(wm, base, lpips, &f_wm, &f_base), n, &report.vs_raw);
-    Accumulate(Compare(base, truth, lpips, &f_base, &f_truth), n,
-               &report.raw_vs_ground_truth);
+    if (options.ground_truth) {
+      const std::shared_ptr<const ImageRGB> truth_image =
+          views.Image(eval_views[k]);
+      const ImageRGB& truth = *truth_image;
+      if (lpips) f_truth = lpips->Extract(truth);
+      Accumulate(Compare(wm, truth, lpips, &f_wm, &f_truth), n,
+                 &report.vs_ground_truth);
+      Accumulate(Compare(base, truth, lpips, &f_base, &f_truth), n,
+                 &report.raw_vs_ground_truth);
+    }
     step(int64_t(k + 1), "quality");
+  }
+  if (!options.ground_truth) {
+    // No views compared: the means are not numbers (n/a, null in JSON).
+    for (QualityComparison* c :
+         {&report.vs_ground_truth, &report.raw_vs_ground_truth}) {
+      c->mean.psnr = c->mean.ssim = c->mean.ms_ssim = NAN;
+      c->mean.ms_ssim_scales = report.vs_raw.mean.ms_ssim_scales;
+    }
   }
 
   int64_t done = int64_t(n);
@@ -202,6 +214,7 @@ std::string EvaluationToJson(const EvaluationReport& r) {
   j["false_positive_rate"] = r.thresholds.present_p;
   j["absent_above_p"] = r.thresholds.absent_p;
   j["lpips_note"] = r.lpips_note;
+  j["ground_truth_note"] = r.ground_truth_note;
   j["seconds"] = r.seconds;
   nlohmann::json quality = nlohmann::json::array();
   for (const QualityComparison* c :
@@ -238,7 +251,8 @@ std::string EvaluationToJson(const EvaluationReport& r) {
 
 std::string EvaluationToMarkdown(const EvaluationReport& r) {
   std::ostringstream out;
-  out << "## Image quality (mean over " << r.view_names.size() << " views)\n\n"
+  out << "## Image quality (mean over " << r.view_names.size()
+      << (r.view_names.size() == 1 ? " view" : " views") << ")\n\n"
       << "| Comparison | PSNR (dB) | SSIM | MS-SSIM | LPIPS (VGG) |\n"
       << "|---|---:|---:|---:|---:|\n";
   for (const QualityComparison* c :
@@ -249,8 +263,11 @@ std::string EvaluationToMarkdown(const EvaluationReport& r) {
         << (m.has_lpips ? Format("%.4f", m.lpips) : "") << " |\n";
   }
   out << "\n";
+  if (!r.ground_truth_note.empty()) {
+    out << "Ground truth: " << r.ground_truth_note << ".\n";
+  }
   if (!r.lpips_note.empty()) out << "LPIPS: " << r.lpips_note << ".\n";
-  const int scales = r.vs_ground_truth.mean.ms_ssim_scales;
+  const int scales = r.vs_raw.mean.ms_ssim_scales;
   if (scales < 5) {
     out << "MS-SSIM: " << scales
         << " scale(s), the image is too small for 5 (weights renormalised).\n";

@@ -49,6 +49,10 @@ struct EvaluationOptions {
   // says why.
   Lpips* lpips = nullptr;
   std::string lpips_note;
+  // Whether `views` has ground-truth images; without, the two comparisons
+  // against them are left empty (n/a) and `ground_truth_note` says why.
+  bool ground_truth = true;
+  std::string ground_truth_note;
   // Draw a progress bar with ETA on stderr.
   bool show_progress = false;
 };
@@ -97,6 +101,8 @@ struct EvaluationReport {
   // Watermarked vs ground truth, watermarked vs raw renders, raw vs ground
   // truth (context: what the raw model itself reaches).
   QualityComparison vs_ground_truth, vs_raw, raw_vs_ground_truth;
+  // Why the comparisons against ground truth are empty ("" when computed).
+  std::string ground_truth_note;
   // Why LPIPS is empty ("" when computed).
   std::string lpips_note;
   // One row per attack, the raw model's identity row last.

@@ -74,22 +74,29 @@ Bits PaddingBits(int num_bits) {
 Bits ParseMessage(const std::string& text, int num_bits) {
   if (num_bits <= 0) Fail("message length must be positive");
   Bits bits;
+  // What the limit is in the units the message was typed in.
+  std::string limit;
+  const std::string n = std::to_string(num_bits);
   if (StartsWith(text, "hex:")) {
     bits = ParseHex(text.substr(4), text);
+    limit = std::to_string(num_bits / 4) + " hex digits";
   } else if (StartsWith(text, "0x") || StartsWith(text, "0X")) {
     bits = ParseHex(text.substr(2), text);
+    limit = std::to_string(num_bits / 4) + " hex digits";
   } else if (StartsWith(text, "bits:")) {
     bits = ParseBitString(text.substr(5), text);
-  } else if (StartsWith(text, "text:")) {
-    bits = ParseText(text.substr(5));
+    limit = n + " bits";
   } else {
-    bits = ParseText(text);
+    bits = ParseText(StartsWith(text, "text:") ? text.substr(5) : text);
+    // A character outside ASCII takes 2-4 of the bytes.
+    limit = std::to_string(num_bits / 8) + " characters of ASCII text (" +
+            std::to_string(num_bits / 8) + " bytes of UTF-8)";
   }
   if (bits.empty()) Fail("message `" + Printable(text) + "` is empty");
   if (static_cast<int>(bits.size()) > num_bits) {
     Fail("message `" + Printable(text) + "` needs " +
-         std::to_string(bits.size()) + " bits but the decoder reads " +
-         std::to_string(num_bits));
+         std::to_string(bits.size()) + " bits but the decoder reads " + n +
+         ": at most " + limit);
   }
   const Bits padding = PaddingBits(num_bits);
   for (size_t i = bits.size(); i < static_cast<size_t>(num_bits); ++i) {

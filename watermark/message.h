@@ -21,6 +21,12 @@ using Bits = std::vector<uint8_t>;
 // message is empty, malformed, or longer than num_bits.
 Bits ParseMessage(const std::string& text, int num_bits);
 
+// The formats above, for the help of the commands' --message.
+inline constexpr char kMessageFormats[] =
+    "hex:HEX or 0xHEX (4 bits a digit), bits:0101.. (1 bit a character), or "
+    "text:TEXT (8 bits a UTF-8 byte; a message with none of these prefixes "
+    "is text too). At most the decoder's bits; shorter messages are padded";
+
 // The padding sequence: bit i = bit (i mod 64) of SplitMix64 step i / 64
 // seeded with 0x5741544552475321 ("WATERGS!"). Deterministic and documented
 // so any implementation can reproduce it.

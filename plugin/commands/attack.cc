@@ -44,6 +44,8 @@ int RunAttack(int argc, char** argv) {
     Fail("attack: --output_path must differ from --input_path");
   }
   const std::vector<ModelAttackSpec> specs = ParseModelAttackList(attacks);
+  // Before the work: a missing output folder fails at once.
+  CheckOutputFile(output_path);
   PlyData ply = ReadPly(input_path);
   std::mt19937_64 rng(static_cast<uint64_t>(seed));
   // parent[i]: index in the input file of output Gaussian i.

@@ -20,6 +20,7 @@
 #include "plugin/option_parser.h"
 #include "watermark/concat_encoder.h"
 #include "watermark/extractor.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -51,6 +52,7 @@ void Validate(const ConcatArgs& a) {
   if (a.hidden < 1) Fail("--hidden must be at least 1");
   if (a.crop_size < 0) Fail("--crop_size must be >= 0 (0 = whole frames)");
   if (a.check_views < 1) Fail("--check_views must be at least 1");
+  CheckOutputFile(a.output_path);  // before the training, not after
 }
 
 // The message read from whole-frame renders of `model` on `views`.
@@ -73,12 +75,14 @@ void AddOptions(OptionParser* parser, ConcatArgs* a) {
   parser->AddRequired("input_path", &a->input_path, "Trained 3DGS PLY");
   parser->AddRequired("workspace_path", &a->workspace.workspace_path,
                       "COLMAP workspace the model was trained on");
+  parser->Add("sparse_path", &a->workspace.input_path,
+              "Sparse model folder (default <workspace>/sparse/0)");
   parser->Add("image_path", &a->workspace.image_path,
               "Image folder (default <workspace>/images)");
   parser->Add("downscale", &a->workspace.downscale, "Image downscale: 1,2,4,8");
   parser->AddRequired("decoder", &a->decoder_path, "Decoder weights file");
   parser->AddRequired("message", &a->message,
-                      "Message: hex:.. / 0x.. / bits:.. / text");
+                      std::string("Message: ") + kMessageFormats);
   parser->AddRequired("output_path", &a->output_path, "Watermarked PLY");
   parser->Add("iterations", &a->iterations, "Encoder training iterations");
   parser->Add("gamma", &a->gamma, "Weight of the message loss");

@@ -25,6 +25,7 @@
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/embedder.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -72,6 +73,7 @@ void Validate(const EmbedArgs& a) {
   if (!(a.free_view_fraction >= 0 && a.free_view_fraction <= 1))
     Fail("--free_view_fraction must be in [0, 1]");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
+  CheckOutputFile(a.output_path);  // before the fine-tuning, not after
 }
 
 // Seconds of one forward + backward pass of the rasterizer at `rect`
@@ -116,12 +118,14 @@ int RunEmbed(int argc, char** argv) {
   parser.AddRequired("input_path", &a.input_path, "Trained 3DGS PLY");
   parser.AddRequired("workspace_path", &a.workspace.workspace_path,
                      "COLMAP workspace the model was trained on");
+  parser.Add("sparse_path", &a.workspace.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &a.workspace.image_path,
              "Image folder (default <workspace>/images)");
   parser.Add("downscale", &a.workspace.downscale, "Image downscale: 1,2,4,8");
   parser.AddRequired("decoder", &a.decoder_path, "Decoder weights file");
   parser.AddRequired("message", &a.message,
-                     "Message: hex:.. / 0x.. / bits:.. / text");
+                     std::string("Message: ") + kMessageFormats);
   parser.AddRequired("output_path", &a.output_path, "Watermarked PLY");
   parser.Add("iterations", &a.iterations, "Fine-tuning iterations");
   parser.Add("gamma", &a.gamma, "Weight of the message loss");

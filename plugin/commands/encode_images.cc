@@ -65,7 +65,7 @@ int RunEncodeImages(int argc, char** argv) {
   parser.AddRequired("model", &model_path,
                      "Weights file with an encoder (train_decoder's output)");
   parser.AddRequired("message", &message_text,
-                     "Message: hex:.. / 0x.. / bits:.. / text");
+                     std::string("Message: ") + kMessageFormats);
   if (!parser.Parse(argc, argv)) return 0;
   if (parser.device() == Device::kCuda) {
     Fail("encode_images: the encoder runs on the CPU (use --device cpu)");

@@ -20,6 +20,7 @@
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/evaluation.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -47,16 +48,27 @@ std::vector<size_t> SelectViews(const Workspace& workspace,
   return views;
 }
 
-// Loads the LPIPS weights if the file exists; else sets `note`.
-std::unique_ptr<Lpips> LoadLpipsIfPresent(const std::string& path,
-                                          std::string* note) {
+// Loads the LPIPS weights. Weights missing at the default path (relative to
+// the current folder) skip LPIPS: `skipped` says why in a line for the user,
+// `note` in the report; missing at a path the user gave is an error.
+std::unique_ptr<Lpips> LoadLpips(const std::string& path, bool given,
+                                 std::string* note, std::string* skipped) {
   if (path.empty()) {
     *note = "not computed (--lpips_weights is empty)";
     return nullptr;
   }
   if (!std::filesystem::exists(path)) {
-    *note = "LPIPS weights not found at " + path +
-            " (bash datasets_scripts/download_lpips_weights.sh)";
+    const std::string fetch =
+        "bash datasets_scripts/download_lpips_weights.sh fetches them";
+    if (given) {
+      FailAt(path, "LPIPS weights not found (--lpips_weights; " + fetch +
+                       ", '' skips LPIPS)");
+    }
+    const std::string why = "no weights at the default " + path +
+                            " (relative to the current folder; " + fetch +
+                            ", --lpips_weights names another file)";
+    *note = "not computed: " + why;
+    *skipped = "eval: LPIPS skipped: " + why;
     return nullptr;
   }
   return Lpips::Load(path);
@@ -83,14 +95,17 @@ int RunEval(int argc, char** argv) {
   parser.AddRequired("raw_path", &raw_path, "The raw (unwatermarked) PLY");
   parser.AddRequired("input_path", &input_path, "The watermarked PLY");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
-                     "COLMAP workspace with the ground-truth images");
+                     "COLMAP workspace (its images are the ground truth; "
+                     "without them only the raw renders are compared)");
+  parser.Add("sparse_path", &workspace_options.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &workspace_options.image_path,
              "Image folder (default <workspace>/images)");
   parser.Add("downscale", &workspace_options.downscale,
              "Image downscale: 1,2,4,8");
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
   parser.AddRequired("message", &message,
-                     "Embedded message (hex:/0x/bits:/text)");
+                     std::string("Embedded message: ") + kMessageFormats);
   parser.Add("output_path", &output_path,
              "Report prefix: writes <prefix>.json and <prefix>.md");
   parser.Add("attacks", &model_attacks,
@@ -98,7 +113,10 @@ int RunEval(int argc, char** argv) {
   parser.Add("image_attacks", &image_attacks,
              "Attacks on renders: jpeg:Q, resize:F, crop:F ('' for none)");
   parser.Add("lpips_weights", &lpips_path,
-             "LPIPS-VGG weights (download_lpips_weights.sh); '' to skip");
+             "LPIPS-VGG weights (datasets_scripts/download_lpips_weights.sh); "
+             "'' to skip. The default is relative to the current folder and "
+             "LPIPS is skipped (said once) if it is missing there; a path "
+             "given that does not exist is an error");
   parser.Add("views", &which_views, "test (every 8th) or all");
   parser.Add("max_views", &max_views,
              "Evaluate at most this many views, spread evenly (0 = all)");
@@ -113,6 +131,10 @@ int RunEval(int argc, char** argv) {
     Fail("eval: --false_positive_rate must be in (0, 0.01)");
   }
   if (num_threads > 0) omp_set_num_threads(num_threads);
+  if (!output_path.empty()) {
+    CheckOutputFile(output_path + ".json");  // before the work, not after
+    CheckOutputFile(output_path + ".md");
+  }
 
   EvaluationOptions options;
   options.model_attacks = model_attacks.empty()
@@ -130,24 +152,44 @@ int RunEval(int argc, char** argv) {
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(decoder_path, parser.device());
   const Bits bits = ParseMessage(message, decoder->NumBits());
+  // What is left out, said once when every input has been accepted (an
+  // error stays the only line).
+  std::vector<std::string> notices;
+  std::string lpips_skipped;
   std::unique_ptr<Lpips> lpips =
-      LoadLpipsIfPresent(lpips_path, &options.lpips_note);
+      LoadLpips(lpips_path, parser.Given("lpips_weights"), &options.lpips_note,
+                &lpips_skipped);
+  if (!lpips_skipped.empty()) notices.push_back(lpips_skipped);
   options.lpips = lpips.get();
+  // Without images the renders are still compared with each other and the
+  // watermark read; only the comparisons with ground truth are left empty.
+  workspace_options.images_optional = true;
   const Workspace workspace = Workspace::Open(workspace_options);
+  options.ground_truth = workspace.has_images();
+  if (!options.ground_truth) {
+    options.ground_truth_note = "none (no image folder at " +
+                                workspace.options().image_path +
+                                "): only the raw renders are compared";
+    notices.push_back("eval: no ground truth: " + options.ground_truth_note);
+  }
   const WorkspaceViews views(workspace);
   const std::vector<size_t> eval_views =
       SelectViews(workspace, which_views, max_views);
+  for (const std::string& notice : notices) std::cerr << notice << "\n";
 
   const EvaluationReport report = EvaluateWatermark(
       *MakeRasterizer(parser.device()), raw.model, watermarked.model, views,
       eval_views, *decoder, bits, options);
+  // "1 held-out view", "9 views".
+  const std::string views_text = std::to_string(eval_views.size()) +
+                                 (which_views == "test" ? " held-out" : "") +
+                                 (eval_views.size() == 1 ? " view" : " views");
   std::string markdown =
       "# watergs eval\n\nRaw " + raw_path + " (" +
       std::to_string(report.raw_gaussians) + " Gaussians), watermarked " +
       input_path + " (" + std::to_string(report.watermarked_gaussians) +
-      " Gaussians), " + std::to_string(eval_views.size()) + " " +
-      (which_views == "test" ? "held-out " : "") + "views of " +
-      workspace_options.workspace_path + ".\n\n" + EvaluationToMarkdown(report);
+      " Gaussians), " + views_text + " of " + workspace_options.workspace_path +
+      ".\n\n" + EvaluationToMarkdown(report);
   std::cout << markdown;
   if (!output_path.empty()) {
     AtomicWriteFile(output_path + ".json", EvaluationToJson(report));

@@ -24,24 +24,43 @@
 #include "watermark/bit_decoder.h"
 #include "watermark/extractor.h"
 #include "watermark/image_attacks.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
 
 // "similarity:..." (or the bare numbers), or a file holding that line (the
 // <output>.transform.txt that `watergs attack` writes).
+// Errors name the option, or the file it named, not the attack parser's
+// --attack.
 SimilarityTransform ParseSceneTransform(const std::string& value) {
+  const std::string prefix = "similarity:";
   std::string text = value;
+  std::string source = "--scene_transform";
   if (std::filesystem::is_regular_file(value)) {
     const std::vector<uint8_t> bytes = ReadFileBytes(value);
     text.assign(bytes.begin(), bytes.end());
     while (!text.empty() && std::isspace((unsigned char)text.back())) {
       text.pop_back();
     }
+    source = value;
+  } else if (text.rfind(prefix, 0) != 0 &&
+             text.find_first_not_of("0123456789+-.,eE ") != std::string::npos) {
+    // Neither numbers nor an existing file: a mistyped file name.
+    FailAt(value,
+           "--scene_transform file not found (give the "
+           ".transform.txt that watergs attack wrote, or "
+           "similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ])");
   }
-  const std::string prefix = "similarity:";
   if (text.rfind(prefix, 0) == 0) text = text.substr(prefix.size());
-  return ParseSimilarity(text);
+  try {
+    return ParseSimilarity(text);
+  } catch (const Error& e) {
+    std::string message = e.what();
+    const std::string attack = "--attack: ";
+    if (message.rfind(attack, 0) == 0) message = message.substr(attack.size());
+    Fail(source + ": " + message);
+  }
 }
 
 int RunExtract(int argc, char** argv) {
@@ -64,12 +83,15 @@ int RunExtract(int argc, char** argv) {
   parser.AddRequired("input_path", &input_path, "3DGS PLY to examine");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
                      "COLMAP workspace whose cameras are rendered");
+  parser.Add("sparse_path", &workspace_options.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &workspace_options.image_path,
-             "Image folder (default <workspace>/images)");
+             "Image folder (not read: extract renders the cameras only)");
   parser.Add("downscale", &workspace_options.downscale,
              "Image downscale: 1,2,4,8");
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
-  parser.Add("message", &message, "Claimed message (hex:/0x/bits:/text)");
+  parser.Add("message", &message,
+             std::string("Claimed message: ") + kMessageFormats);
   parser.Add("num_views", &num_views,
              "Render N free viewpoints between the cameras (0 = the "
              "workspace's cameras)");
@@ -94,12 +116,15 @@ int RunExtract(int argc, char** argv) {
     Fail("--false_positive_rate must be in (0, 0.01)");
   }
   if (num_threads > 0) omp_set_num_threads(num_threads);
+  // Before the work: a mistyped --json path fails at once.
+  if (!json_path.empty()) CheckOutputFile(json_path);
 
   const PlyData ply = ReadPly(input_path);
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(decoder_path, parser.device());
   Bits expected;
   if (!message.empty()) expected = ParseMessage(message, decoder->NumBits());
+  workspace_options.images_optional = true;  // only the cameras are rendered
   const Workspace workspace = Workspace::Open(workspace_options);
   const WorkspaceViews views(workspace);
 

@@ -11,8 +11,9 @@ namespace {
 void PrintCommands() {
   std::cout << "watergs: 3D Gaussian Splatting training and WATER-GS "
                "watermarking for COLMAP workspaces\n\n"
-               "Usage: watergs <command> [options]   (`watergs <command> -h` "
-               "for a command's options)\n\nCommands:\n";
+               "Usage: watergs <command> [options]   (`watergs help <command>` "
+               "or `watergs <command> -h` for a command's options; "
+               "`watergs --version`)\n\nCommands:\n";
   for (const auto& [name, command] : watergs::CommandRegistry()) {
     std::cout << "  " << name;
     for (size_t i = name.size(); i < 16; ++i) std::cout << ' ';
@@ -23,6 +24,20 @@ void PrintCommands() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && (!std::strcmp(argv[1], "--version") ||
+                    !std::strcmp(argv[1], "version"))) {
+    std::cout << "watergs " << WATERGS_VERSION << "\n";
+    return 0;
+  }
+  // `watergs help <command>` is `watergs <command> -h`.
+  char help_flag[] = "-h";
+  char* help_argv[] = {nullptr, nullptr, help_flag, nullptr};
+  if (argc >= 3 && !std::strcmp(argv[1], "help")) {
+    help_argv[0] = argv[0];
+    help_argv[1] = argv[2];
+    argc = 3;
+    argv = help_argv;
+  }
   if (argc < 2 || !std::strcmp(argv[1], "help") ||
       !std::strcmp(argv[1], "-h") || !std::strcmp(argv[1], "--help")) {
     PrintCommands();

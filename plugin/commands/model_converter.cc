@@ -1,7 +1,10 @@
 // `watergs model_converter`: converts a COLMAP sparse model between the .bin
 // and .txt formats, writing exactly what `colmap model_converter` writes.
 #include <iostream>
+#include <string>
 
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/reconstruction_io.h"
@@ -21,8 +24,16 @@ int RunModelConverter(int argc, char** argv) {
   parser.AddRequired("output_type", &output_type, "BIN or TXT");
   if (!parser.Parse(argc, argv)) return 0;
   const watergs::ModelFormat format = watergs::ParseModelFormat(output_type);
+  // Converting in place would rewrite the input model (reordered) or leave
+  // both formats side by side, the reader then taking the .bin ones.
+  const std::string model_path = watergs::FindModelPath(input_path);
+  if (watergs::SamePath(model_path, output_path)) {
+    watergs::FailAt(output_path,
+                    "holds the input model (--input_path " + input_path +
+                        "): write the converted model to another folder");
+  }
   const watergs::Reconstruction reconstruction =
-      watergs::ReadReconstruction(input_path);
+      watergs::ReadReconstruction(model_path);
   watergs::WriteReconstruction(reconstruction, output_path, format);
   std::cout << "Wrote " << reconstruction.NumCameras() << " cameras, "
             << reconstruction.NumRegImages() << " images, "

@@ -15,7 +15,10 @@
 
 namespace {
 
-// Running min/max/mean over the finite values; counts the others.
+// Running min/max/mean of activated values whose file value is finite;
+// counts the file values that are NaN/Inf, so that the column of counts
+// sums to the file's total (an activation may overflow a finite value: exp
+// of a log-scale of 800 is shown as inf in the range, not counted).
 struct RangeStats {
   double min = std::numeric_limits<double>::infinity();
   double max = -std::numeric_limits<double>::infinity();
@@ -23,14 +26,14 @@ struct RangeStats {
   size_t finite = 0;
   size_t non_finite = 0;
 
-  void Add(double v) {
-    if (!std::isfinite(v)) {
+  void Add(float raw, double activated) {
+    if (!std::isfinite(raw)) {
       ++non_finite;
       return;
     }
-    min = std::min(min, v);
-    max = std::max(max, v);
-    sum += v;
+    min = std::min(min, activated);
+    max = std::max(max, activated);
+    sum += activated;
     ++finite;
   }
 };
@@ -41,9 +44,29 @@ RangeStats Column(const std::vector<float>& values, int stride, int offset,
                   F&& activation) {
   RangeStats s;
   for (size_t i = offset; i < values.size(); i += stride) {
-    s.Add(activation(values[i]));
+    s.Add(values[i], activation(values[i]));
   }
   return s;
+}
+
+// Values of a trained model stay far below this in magnitude (positions in
+// scene units, log-scales, logits, SH coefficients, quaternions); the
+// floats of a file read with the wrong byte order mostly do not.
+constexpr double kImplausible = 1e6;
+
+// How many of the model's values are NaN/Inf or beyond kImplausible, of
+// how many.
+std::pair<size_t, size_t> CountImplausible(const watergs::GaussianModel& m) {
+  size_t bad = 0, total = 0;
+  for (const std::vector<float>* values :
+       {&m.means, &m.log_scales, &m.opacity_logits, &m.sh_dc, &m.sh_rest,
+        &m.quats}) {
+    for (const float v : *values) {
+      bad += !(std::abs(v) <= kImplausible);
+    }
+    total += values->size();
+  }
+  return {bad, total};
 }
 
 void PrintRow(const std::string& name, const RangeStats& s) {
@@ -127,13 +150,21 @@ void PrintRanges(const watergs::GaussianModel& m) {
              Column(m.sh_dc, 3, c, colour));
   }
   RangeStats rest;
-  for (float v : m.sh_rest) rest.Add(v);
+  for (float v : m.sh_rest) rest.Add(v, v);
   if (m.sh_degree > 0) PrintRow("f_rest (all)", rest);
+  // The norm of the Gaussians whose four values are finite; the count is of
+  // values, as in the other rows.
   RangeStats quat_norm;
   for (size_t i = 0; i < m.size(); ++i) {
     const float* q = &m.quats[4 * i];
-    quat_norm.Add(std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] +
-                            double(q[2]) * q[2] + double(q[3]) * q[3]));
+    size_t bad = 0;
+    for (int k = 0; k < 4; ++k) bad += !std::isfinite(q[k]);
+    if (bad > 0) {
+      quat_norm.non_finite += bad;
+      continue;
+    }
+    quat_norm.Add(0.f, std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] +
+                                 double(q[2]) * q[2] + double(q[3]) * q[3]));
   }
   PrintRow("|rot|", quat_norm);
 }
@@ -174,6 +205,18 @@ int RunPlyInfo(int argc, char** argv) {
               extras.empty() ? "none" : DescribeProperties(extras).c_str());
   std::printf("NaN/Inf values:  %zu\n", data.non_finite_count);
   PrintRanges(m);
+  const auto [implausible, total] = CountImplausible(m);
+  if (implausible > total / 10) {
+    std::fflush(stdout);
+    std::fprintf(
+        stderr,
+        "warning: %zu of %zu values (%.0f%%) are NaN/Inf or beyond 1e6 in "
+        "magnitude: not a trained 3DGS model, or %s\n",
+        implausible, total, 100.0 * implausible / total,
+        data.layout.format == watergs::PlyFormat::kAscii
+            ? "its values are garbage"
+            : "the header's byte order is wrong (try the other binary_*)");
+  }
   return 0;
 }
 

@@ -29,7 +29,8 @@ int RunRender(int argc, char** argv) {
   int sh_degree = -1, num_threads = 0;
   OptionParser parser("render",
                       "Renders a 3DGS PLY from a COLMAP workspace's cameras "
-                      "to PNGs and prints PSNR/SSIM against its images.");
+                      "to PNGs and prints PSNR/SSIM against its images (when "
+                      "the workspace has its image folder).");
   parser.AddRequired("input_path", &input_path, "The model .ply");
   parser.AddRequired("workspace_path", &ws.workspace_path,
                      "COLMAP workspace (images/ and sparse/0)");
@@ -56,13 +57,19 @@ int RunRender(int argc, char** argv) {
     Fail("--sh_degree " + std::to_string(sh_degree) + " is not in -1.." +
          std::to_string(ply.model.sh_degree) + " for this model");
   }
+  ws.images_optional = true;  // renders need only the cameras
   const Workspace workspace = Workspace::Open(ws);
+  const bool truth = workspace.has_images();
   const WorkspaceViews views(workspace);
   std::vector<size_t> selected;
   if (split == "test") selected = workspace.TestViews(true);
   if (split == "train") selected = workspace.TrainViews(true);
   if (split == "all") selected = workspace.TrainViews(false);
   CreateDirectories(output_path);
+  if (!truth) {
+    std::printf("render: no image folder at %s: PNGs only, no PSNR/SSIM\n",
+                workspace.options().image_path.c_str());
+  }
 
   auto rasterizer = MakeRasterizer(parser.device());
   RenderOptions options;
@@ -79,27 +86,44 @@ int RunRender(int argc, char** argv) {
     for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
     const std::string name = NameStem(views.Name(view));
     WritePng(output_path + "/" + name + ".png", image);
-    const auto truth = views.Image(view);
-    const double psnr = Psnr(image, *truth);
-    const double ssim = Ssim(image, *truth);
-    psnr_sum += psnr;
-    ssim_sum += ssim;
-    per_view.push_back(
-        {{"name", views.Name(view)}, {"psnr", psnr}, {"ssim", ssim}});
-    std::printf("%-24s PSNR %6.2f dB  SSIM %.4f\n", views.Name(view).c_str(),
-                psnr, ssim);
+    if (truth) {
+      const auto truth_image = views.Image(view);
+      const double psnr = Psnr(image, *truth_image);
+      const double ssim = Ssim(image, *truth_image);
+      psnr_sum += psnr;
+      ssim_sum += ssim;
+      per_view.push_back(
+          {{"name", views.Name(view)}, {"psnr", psnr}, {"ssim", ssim}});
+      std::printf("%-24s PSNR %6.2f dB  SSIM %.4f\n", views.Name(view).c_str(),
+                  psnr, ssim);
+    } else {
+      per_view.push_back({{"name", views.Name(view)}});
+    }
     bar.Update(static_cast<int64_t>(k + 1));
   }
   bar.Finish();
   const double n = std::max<size_t>(selected.size(), 1);
   nlohmann::json report = {
-      {"model", input_path},          {"split", split},
-      {"num_views", selected.size()}, {"psnr", psnr_sum / n},
-      {"ssim", ssim_sum / n},         {"views", per_view}};
+      {"model", input_path},
+      {"split", split},
+      {"num_views", selected.size()},
+      {"psnr", truth ? nlohmann::json(psnr_sum / n) : nlohmann::json()},
+      {"ssim", truth ? nlohmann::json(ssim_sum / n) : nlohmann::json()},
+      {"views", per_view}};
   AtomicWriteFile(output_path + "/render_report.json", report.dump(2) + "\n");
-  std::printf("render: %zu %s views, mean PSNR %.2f dB, SSIM %.4f -> %s\n",
-              selected.size(), split.c_str(), psnr_sum / n, ssim_sum / n,
-              output_path.c_str());
+  // "all 9 views", "1 test view", "7 train views".
+  const size_t count = selected.size();
+  const std::string views_text =
+      (split == "all" ? "all " + std::to_string(count)
+                      : std::to_string(count) + " " + split) +
+      (count == 1 ? " view" : " views");
+  if (truth) {
+    std::printf("render: %s, mean PSNR %.2f dB, SSIM %.4f -> %s\n",
+                views_text.c_str(), psnr_sum / n, ssim_sum / n,
+                output_path.c_str());
+  } else {
+    std::printf("render: %s -> %s\n", views_text.c_str(), output_path.c_str());
+  }
   return 0;
 }
 

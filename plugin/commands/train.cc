@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gaussian/device.h"
@@ -67,6 +68,9 @@ struct TrainArgs {
   int64_t densify_until_iter = 15000;
   bool compact_optimizer = false;
   std::string moment_precision = "float32";
+  bool overwrite = false;
+  // 0: --iterations.
+  int64_t position_lr_max_steps = 0;
 };
 
 void Validate(const TrainArgs& a) {
@@ -83,6 +87,58 @@ void Validate(const TrainArgs& a) {
   if (a.num_threads < 0) Fail("--num_threads must be >= 0 (0 = all cores)");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
   if (a.log_every < 1) Fail("--log_every must be >= 1");
+  if (a.position_lr_max_steps < 0) {
+    Fail("--position_lr_max_steps must be >= 0 (0 = --iterations)");
+  }
+}
+
+// The files a run writes into its output folder.
+const char* const kRunFiles[] = {"point_cloud.ply", "report.json",
+                                 "cameras.json", "train_log.jsonl",
+                                 "checkpoint.ckpt"};
+
+// Refuses an output folder that is the workspace, or is or lies inside its
+// image or model folder (a run's files would mix with, or be read as, its
+// inputs), and one holding an earlier run unless it is resumed or replaced.
+// Runs before anything is written.
+void CheckOutputFolder(const TrainArgs& a, const Workspace& workspace) {
+  namespace fs = std::filesystem;
+  const std::string& out = a.output_path;
+  struct Input {
+    const char* what;
+    std::string path;
+    // Whether a folder inside it is refused too (the workspace may hold
+    // outputs beside images/ and sparse/).
+    bool nor_inside;
+  };
+  const Input inputs[] = {
+      {"the workspace", a.workspace.workspace_path, false},
+      {"the image folder", workspace.options().image_path, true},
+      {"the sparse model folder", workspace.model_path(), true}};
+  for (const Input& input : inputs) {
+    if (input.path.empty()) continue;
+    if (SamePath(out, input.path)) {
+      FailAt(out, std::string("is ") + input.what +
+                      ": choose an output folder that holds no inputs");
+    }
+    std::error_code ec;
+    for (fs::path p = fs::weakly_canonical(out, ec).parent_path();
+         !ec && input.nor_inside && p.has_relative_path();
+         p = p.parent_path()) {
+      if (SamePath(p.string(), input.path)) {
+        FailAt(out, std::string("lies inside ") + input.what + " (" +
+                        input.path +
+                        "): choose an output folder that holds no inputs");
+      }
+    }
+  }
+  if (a.resume || a.overwrite) return;
+  for (const char* name : kRunFiles) {
+    const std::string file = out + "/" + name;
+    if (!fs::exists(file)) continue;
+    FailAt(out, std::string("holds an earlier run (") + name +
+                    "): --resume continues it, --overwrite replaces it");
+  }
 }
 
 void WriteReport(const std::string& path, const TrainArgs& a,
@@ -128,12 +184,27 @@ int RunTrain(int argc, char** argv) {
                       "workspace (Inria's 3DGS recipe).");
   parser.AddRequired("workspace_path", &a.workspace.workspace_path,
                      "COLMAP workspace (images/ and sparse/0)");
-  parser.Add("input_path", &a.workspace.input_path,
+  parser.Add("sparse_path", &a.workspace.input_path,
              "Sparse model folder (default <workspace>/sparse/0)");
+  parser.AddAlias("input_path", "sparse_path");
   parser.Add("image_path", &a.workspace.image_path,
              "Image folder (default <workspace>/images)");
-  parser.AddRequired("output_path", &a.output_path, "Output folder");
-  parser.Add("iterations", &a.iterations, "Training iterations");
+  parser.AddRequired("output_path", &a.output_path,
+                     "Output folder (created when training starts); one "
+                     "holding an earlier run needs --resume or --overwrite");
+  parser.AddFlag("overwrite", &a.overwrite,
+                 "Replace the earlier run in --output_path (its checkpoint "
+                 "is deleted when training starts)");
+  parser.Add("iterations", &a.iterations,
+             "Training iterations. The position learning rate decays over "
+             "--position_lr_max_steps, by default this many, so runs of "
+             "different lengths differ from the first iteration on; with "
+             "--position_lr_max_steps fixed, a shorter run is the start of "
+             "a longer one (up to its last iteration, which takes no step)");
+  parser.Add("position_lr_max_steps", &a.position_lr_max_steps,
+             "Iterations over which the position learning rate decays from "
+             "1.6e-4 to 1.6e-6 (times the scene extent); 0 = --iterations "
+             "(Inria's default is a fixed 30000)");
   parser.Add("downscale", &a.workspace.downscale,
              "Image downscale factor: 1, 2, 4 or 8");
   parser.Add("sh_degree", &a.sh_degree, "Highest SH degree (0-3)");
@@ -173,14 +244,15 @@ int RunTrain(int argc, char** argv) {
   const std::vector<int64_t> test_iterations =
       ParseIterationList(a.test_iterations);
 
-  CreateDirectories(a.output_path);
   const std::string out = a.output_path;
   const std::string checkpoint_path = out + "/checkpoint.ckpt";
+  if (a.resume && a.overwrite) Fail("train: --resume or --overwrite, not both");
   if (a.resume && !std::filesystem::exists(checkpoint_path)) {
     FailAt(checkpoint_path,
            "no checkpoint to resume (train with --checkpoint_every N)");
   }
   const Workspace workspace = Workspace::Open(a.workspace);
+  CheckOutputFolder(a, workspace);
   const WorkspaceViews views(workspace);
   const std::vector<size_t> train_views = workspace.TrainViews(a.eval);
   const std::vector<size_t> test_views = workspace.TestViews(a.eval);
@@ -202,7 +274,8 @@ int RunTrain(int argc, char** argv) {
   options.iterations = a.iterations;
   options.background = background;
   options.seed = static_cast<uint64_t>(a.seed);
-  options.adam.position_lr_max_steps = a.iterations;
+  options.adam.position_lr_max_steps =
+      a.position_lr_max_steps > 0 ? a.position_lr_max_steps : a.iterations;
   options.adam.compact_moments = a.compact_optimizer;
   // The 8-bit compact moments replace either precision.
   options.adam.half_moments =
@@ -225,7 +298,22 @@ int RunTrain(int argc, char** argv) {
     std::printf("train: resumed at iteration %lld\n",
                 static_cast<long long>(trainer.iteration()));
   }
-  trainer.Run();
+  // The folder appears only now that every input has been read, and goes
+  // again if the run fails before writing into it.
+  const bool created = !std::filesystem::exists(out);
+  CreateDirectories(out);
+  try {
+    // The replaced run's checkpoint must not be resumed later.
+    std::error_code ec;
+    if (a.overwrite) std::filesystem::remove(checkpoint_path, ec);
+    trainer.Run();
+  } catch (...) {
+    std::error_code ec;
+    if (created && std::filesystem::is_empty(out, ec)) {
+      std::filesystem::remove(out, ec);
+    }
+    throw;
+  }
 
   WritePly(out + "/point_cloud.ply", trainer.model());
   std::vector<size_t> all_views = test_views;

@@ -77,6 +77,46 @@ TEST(OptionParser, MalformedValueAndUnknownOptionAreErrors) {
   EXPECT_THROW(parser2.Parse(unknown.argc(), unknown.argv()), Error);
 }
 
+// An alias sets the option it names, on the command line and in a project
+// file; Given tells options typed from defaults; help lists the alias and
+// shows a floating-point default as written.
+TEST(OptionParser, AliasesGivenOptionsAndDefaultsAsWritten) {
+  std::string sparse;
+  double gamma = 0.3;
+  int seed = 0;
+  const auto make = [&](OptionParser* parser) {
+    parser->Add("sparse_path", &sparse, "model");
+    parser->AddAlias("input_path", "sparse_path");
+    parser->Add("gamma", &gamma, "weight");
+    parser->Add("seed", &seed, "seed");
+  };
+  OptionParser parser("demo", "test");
+  make(&parser);
+  Args args({"demo", "--input_path", "m", "--seed", "0"});
+  ASSERT_TRUE(parser.Parse(args.argc(), args.argv()));
+  EXPECT_EQ(sparse, "m");
+  EXPECT_TRUE(parser.Given("sparse_path"));
+  EXPECT_TRUE(parser.Given("seed"));  // typed, even if equal to the default
+  EXPECT_FALSE(parser.Given("gamma"));
+  EXPECT_NE(parser.Help().find("(=0.3)"), std::string::npos);
+  EXPECT_NE(parser.Help().find("--input_path = --sparse_path"),
+            std::string::npos);
+
+  const auto ini =
+      std::filesystem::temp_directory_path() / "watergs_alias_opt.ini";
+  std::ofstream(ini) << "  input_path = from_ini\n";
+  OptionParser from_ini("demo", "test");
+  make(&from_ini);
+  Args ini_args({"demo", "--project_path", ini.string()});
+  ASSERT_TRUE(from_ini.Parse(ini_args.argc(), ini_args.argv()));
+  EXPECT_EQ(sparse, "from_ini");
+
+  OptionParser both("demo", "test");
+  make(&both);
+  Args twice({"demo", "--input_path=a", "--sparse_path", "b"});
+  EXPECT_THROW(both.Parse(twice.argc(), twice.argv()), Error);
+}
+
 TEST(OptionParser, MissingProjectFileNamesIt) {
   OptionParser parser("demo", "test");
   Args args({"demo", "--project_path", "/nonexistent/p.ini"});

@@ -104,6 +104,61 @@ TEST(PlyInfoCli, ReportsCountDegreeRangesAndNonFinite) {
   EXPECT_NEAR(scale[1], 0.04, 1e-6);
 }
 
+// A little-endian file labelled big-endian reads as garbage: the total and
+// the per-attribute NaN/Inf counts agree, and a warning says what is wrong.
+TEST(PlyInfoCli, WrongByteOrderAgreesOnCountsAndWarns) {
+  GaussianModel model;
+  model.sh_degree = 1;
+  model.Resize(200);
+  for (size_t i = 0; i < model.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      model.means[3 * i + k] = 0.37f * float(i % 13) - 1.1f * k;
+      model.log_scales[3 * i + k] = -4.3f + 0.013f * float(i);
+      model.sh_dc[3 * i + k] = 0.21f * float(k) - 0.05f * float(i % 7);
+    }
+    for (int k = 0; k < 9; ++k) {
+      model.sh_rest[9 * i + k] = 0.011f * float(int(i + k) % 11 - 5);
+    }
+    model.opacity_logits[i] = 0.7f + 0.003f * float(i);
+    for (int k = 0; k < 4; ++k) {
+      model.quats[4 * i + k] = 0.5f + 0.0017f * float(i) * float(k);
+    }
+  }
+  const std::string good = TempPath("little.ply");
+  WritePly(good, model);
+  const RunResult plain = RunWatergs("ply_info --input_path " + good);
+  ASSERT_EQ(plain.exit_code, 0) << plain.output;
+  EXPECT_EQ(plain.output.find("warning"), std::string::npos) << plain.output;
+
+  const auto bytes = ReadFileBytes(good);
+  std::string text(bytes.begin(), bytes.end());
+  const std::string little = "binary_little_endian";
+  text.replace(text.find(little), little.size(), "binary_big_endian");
+  const std::string swapped = TempPath("labelled_big.ply");
+  AtomicWriteFile(swapped, text);
+  const RunResult run = RunWatergs("ply_info --input_path " + swapped);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  // "NaN/Inf values:  N" and the last column of the ranges table.
+  const size_t at = run.output.find("NaN/Inf values:  ");
+  ASSERT_NE(at, std::string::npos) << run.output;
+  const size_t total = std::stoul(run.output.substr(at + 17));
+  size_t column = 0;
+  int rows = 0;
+  std::istringstream lines(run.output.substr(run.output.find("attribute")));
+  std::string line;
+  std::getline(lines, line);  // the heading
+  while (std::getline(lines, line) && line.rfind("  ", 0) == 0) {
+    column += std::stoul(line.substr(line.find_last_of(' ') + 1));
+    ++rows;
+  }
+  EXPECT_EQ(rows, 12) << run.output;  // x y z, 3 scales, opacity, 3 colours,
+                                      // f_rest, |rot|
+  EXPECT_GT(total, 0u) << run.output;
+  EXPECT_EQ(column, total) << run.output;
+  EXPECT_NE(run.output.find("warning: "), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("byte order"), std::string::npos) << run.output;
+}
+
 TEST(PlyInfoCli, BadFileFailsWithOneLineNamingTheFile) {
   const std::string path = TempPath("not_a_ply.ply");
   AtomicWriteFile(path, std::string("solid cube\nfacet normal 0 0 1\n"));
