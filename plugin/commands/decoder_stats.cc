@@ -1,0 +1,96 @@
+// `watergs decoder_stats`: how a decoder reads unmarked images (photos, or
+// renders of an unmarked model): fraction of 1-bits, correlation between
+// bits, and how many images would pass the verdict for a claimed message,
+// the false positives an owner's p-value assumes away.
+#include <iomanip>
+#include <iostream>
+#include <random>
+#include <sstream>
+
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "plugin/command.h"
+#include "plugin/image_file.h"
+#include "plugin/option_parser.h"
+#include "watermark/bit_decoder.h"
+#include "watermark/decoder_training.h"
+#include "watermark/feature_decoder_calibration.h"
+#include "watermark/verification.h"
+
+namespace {
+
+using watergs::Fail;
+
+int RunDecoderStats(int argc, char** argv) {
+  std::string decoder_path, image_path, message, json_path;
+  int crop = 0, crops = 1000, seed = 0;
+  double present_p = watergs::VerificationThresholds().present_p;
+  watergs::OptionParser parser(
+      "decoder_stats",
+      "Decodes unmarked images (whole, or random square crops) and reports "
+      "the fraction of 1-bits, the mean |correlation| between bits and how "
+      "many images the verdict would call watermarked for a claimed message.");
+  parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  parser.AddRequired("image_path", &image_path,
+                     "Folder of unmarked images (jpg/png)");
+  parser.Add("message", &message,
+             "Claimed message (default: a fixed random one)");
+  parser.Add("crop", &crop, "Side of random crops (0: whole images)");
+  parser.Add("crops", &crops, "Number of random crops (with --crop)");
+  parser.Add("false_positive_rate", &present_p,
+             "p-value at or below which the verdict says present");
+  parser.Add("seed", &seed, "Seed of the crops");
+  parser.Add("json", &json_path, "Write the figures as JSON here");
+  if (!parser.Parse(argc, argv)) return 0;
+  if (crop < 0 || (crop > 0 && crops < 2))
+    Fail("--crop must be >= 0 and --crops >= 2");
+  if (!(present_p > 0 && present_p < 0.01))
+    Fail("--false_positive_rate must be in (0, 0.01)");
+  if (!json_path.empty()) watergs::CheckOutputFile(json_path);
+  std::unique_ptr<watergs::BitDecoder> decoder =
+      watergs::LoadBitDecoder(decoder_path, parser.device());
+  const int bits = decoder->NumBits();
+  watergs::Bits claimed(bits);
+  if (message.empty()) {
+    std::mt19937 rng(12345);
+    for (auto& b : claimed) b = rng() & 1;
+  } else {
+    claimed = watergs::ParseMessage(message, bits);
+  }
+  const std::vector<cv::Mat> photos = watergs::LoadPhotoFolder(image_path);
+  std::vector<watergs::ImageRGB> images;
+  if (crop > 0) {
+    images = watergs::SamplePhotoCrops(photos, crop, crops, uint32_t(seed));
+  } else {
+    for (const cv::Mat& p : photos) images.push_back(watergs::ToImageRGB(p));
+  }
+  const watergs::DecoderBalance b =
+      watergs::MeasureBalance(*decoder, images, claimed, present_p);
+  std::cout << std::fixed << std::setprecision(3) << "decoder_stats: "
+            << b.images << (crop > 0 ? " crops" : " images")
+            << ", fraction of 1-bits " << b.ones_fraction << " (per bit "
+            << b.min_bit_ones << " .. " << b.max_bit_ones
+            << "), mean |correlation| between bits " << b.mean_abs_correlation
+            << "\ndecoder_stats: would pass the verdict (p <= " << present_p
+            << ", at most " << watergs::MaxErrorsForPresence(bits, present_p)
+            << " of " << bits << " bits wrong): " << b.false_positives
+            << "; fewest bit errors seen " << b.min_bit_errors << "\n";
+  if (!json_path.empty()) {
+    std::ostringstream json;
+    json << std::setprecision(6) << "{\"images\": " << b.images
+         << ", \"ones_fraction\": " << b.ones_fraction
+         << ", \"min_bit_ones\": " << b.min_bit_ones
+         << ", \"max_bit_ones\": " << b.max_bit_ones
+         << ", \"mean_abs_correlation\": " << b.mean_abs_correlation
+         << ", \"false_positives\": " << b.false_positives
+         << ", \"min_bit_errors\": " << b.min_bit_errors << "}\n";
+    watergs::AtomicWriteFile(json_path, json.str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+WATERGS_COMMAND(decoder_stats,
+                "Balance and false positives of a decoder on unmarked images",
+                RunDecoderStats);
