@@ -287,8 +287,7 @@ size_t Embedder::NextView() {
 void Embedder::PlanFreeView(IterationPlan* plan) {
   const size_t other = NextView();
   const double t = std::uniform_real_distribution<double>(0, 1)(rng_);
-  plan->camera =
-      InterpolateCameras(plan->camera, views_.Camera(other), t);
+  plan->camera = InterpolateCameras(plan->camera, views_.Camera(other), t);
   RenderOptions options;
   options.background = options_.background;
   auto target = std::make_shared<ImageRGB>();

@@ -1,10 +1,9 @@
 // The steerable random-feature decoder (see feature_decoder.h).
 #include "watermark/feature_decoder.h"
 
+#include <Eigen/Core>
 #include <cmath>
 #include <cstring>
-
-#include <Eigen/Core>
 
 #include "gaussian/error.h"
 #include "watermark/network_image.h"
@@ -55,13 +54,15 @@ void ConvInputGradient(const Conv2d& conv, const Tensor& dy,
   const int k = conv.kernel(), pad = k / 2, rows = 3 * k * k;
   const int h = dy.h, w = dy.w;
   const size_t hw = size_t(h) * w;
-  using ConstMap = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic,
-                                                  Eigen::Dynamic, Eigen::RowMajor>>;
-  using Map =
-      Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+  using ConstMap =
+      Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic,
+                                     Eigen::RowMajor>>;
+  using Map = Eigen::Map<
+      Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
   dcol->resize(size_t(rows) * hw);
   Map(dcol->data(), rows, hw).noalias() =
-      ConstMap(conv.weight.value.data(), conv.out_channels(), rows).transpose() *
+      ConstMap(conv.weight.value.data(), conv.out_channels(), rows)
+          .transpose() *
       ConstMap(dy.Plane(0, 0), conv.out_channels(), hw);
   dx->Resize(1, 3, h, w);
   dx->Fill(0.f);
@@ -128,8 +129,8 @@ FeatureNet::FeatureNet(const FeatureDecoderConfig& config, uint32_t seed)
       config_(config) {}
 
 double FeatureNet::MacsPerPixel() const {
-  const double conv_macs = double(conv.MacsPerPixel()) /
-                           double(config_.pool * config_.pool);
+  const double conv_macs =
+      double(conv.MacsPerPixel()) / double(config_.pool * config_.pool);
   return 1.0 + conv_macs;  // pooling: one add per input value and pixel
 }
 
@@ -174,11 +175,14 @@ NetworkFile FeatureNetToFile(FeatureNet& net) {
   NetworkFile file;
   file.kind = kFeatureDecoderKind;
   const FeatureDecoderConfig& config = net.config();
-  file.meta = {{"num_bits", config.num_bits}, {"channels", config.channels},
-               {"pool", config.pool},         {"kernel", config.kernel},
-               {"input_range", 1},            {"design", kDesignVersion}};
-  for (const Parameter* p : {&net.conv.weight, &net.conv.bias,
-                             &net.linear.weight, &net.linear.bias})
+  file.meta = {{"num_bits", config.num_bits},
+               {"channels", config.channels},
+               {"pool", config.pool},
+               {"kernel", config.kernel},
+               {"input_range", 1},
+               {"design", kDesignVersion}};
+  for (const Parameter* p :
+       {&net.conv.weight, &net.conv.bias, &net.linear.weight, &net.linear.bias})
     file.tensors.push_back(TensorRecord{p->name, p->shape, p->value});
   return file;
 }

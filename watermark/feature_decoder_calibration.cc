@@ -2,12 +2,11 @@
 // feature_decoder_calibration.h).
 #include "watermark/feature_decoder_calibration.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <random>
-
-#include <Eigen/Dense>
 
 #include "gaussian/error.h"
 #include "watermark/network_image.h"
@@ -35,7 +34,8 @@ void StandardiseConvolution(const std::vector<ImageRGB>& crops,
     for (int c = 0; c < channels; ++c) {
       const float* plane = y.Plane(0, c);
       double s = 0, s2 = 0;
-      for (size_t i = 0; i < hw; ++i) s += plane[i], s2 += double(plane[i]) * plane[i];
+      for (size_t i = 0; i < hw; ++i)
+        s += plane[i], s2 += double(plane[i]) * plane[i];
       sum[c] += s, sum_sq[c] += s2;
     }
     count += double(hw);
@@ -47,8 +47,7 @@ void StandardiseConvolution(const std::vector<ImageRGB>& crops,
     const double inv_std = 1.0 / std::sqrt(var + 1e-5);
     float* w = &net->conv.weight.value[size_t(c) * fan_in];
     for (int i = 0; i < fan_in; ++i) w[i] = float(w[i] * inv_std);
-    net->conv.bias.value[c] =
-        float((net->conv.bias.value[c] - mean) * inv_std);
+    net->conv.bias.value[c] = float((net->conv.bias.value[c] - mean) * inv_std);
   }
 }
 
@@ -60,8 +59,7 @@ MatrixXd PooledFeatures(const std::vector<ImageRGB>& crops, FeatureNet* net) {
   for (size_t i = 0; i < crops.size(); ++i) {
     ImageToTensor(crops[i], false, &input);
     net->Forward(input);
-    for (int c = 0; c < channels; ++c)
-      features(i, c) = net->features().data[c];
+    for (int c = 0; c < channels; ++c) features(i, c) = net->features().data[c];
   }
   return features;
 }
@@ -107,7 +105,8 @@ std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
 }
 
 std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
-    const std::vector<cv::Mat>& photos, const FeatureCalibrationOptions& options,
+    const std::vector<cv::Mat>& photos,
+    const FeatureCalibrationOptions& options,
     FeatureCalibrationReport* report) {
   const auto start = std::chrono::steady_clock::now();
   const FeatureDecoderConfig& config = options.config;
@@ -122,14 +121,14 @@ std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
   if (options.crop < config.pool)
     Fail("make_decoder: crop smaller than the pooling");
   auto net = std::make_unique<FeatureNet>(config, options.seed);
-  StandardiseConvolution(SamplePhotoCrops(photos, options.crop,
-                                          options.normalisation_crops,
-                                          options.seed + 1),
-                         net.get());
-  const MatrixXd features = PooledFeatures(
-      SamplePhotoCrops(photos, options.crop, options.feature_crops,
-                       options.seed + 2),
+  StandardiseConvolution(
+      SamplePhotoCrops(photos, options.crop, options.normalisation_crops,
+                       options.seed + 1),
       net.get());
+  const MatrixXd features =
+      PooledFeatures(SamplePhotoCrops(photos, options.crop,
+                                      options.feature_crops, options.seed + 2),
+                     net.get());
   const VectorXd mean = features.colwise().mean();
   const MatrixXd centred = features.rowwise() - mean.transpose();
   const MatrixXd covariance =
@@ -165,9 +164,9 @@ std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
     report->max_eigenvalue = eigen.eigenvalues().maxCoeff();
     report->min_eigenvalue = eigen.eigenvalues().minCoeff();
     report->floored_eigenvalues = floored;
-    report->seconds = std::chrono::duration<double>(
-                          std::chrono::steady_clock::now() - start)
-                          .count();
+    report->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+            .count();
   }
   return net;
 }

@@ -7,10 +7,9 @@
 
 #include <cstdint>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "gaussian/image.h"
 #include "watermark/bit_decoder.h"
@@ -54,7 +53,8 @@ std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
 
 // The calibrated network.
 std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
-    const std::vector<cv::Mat>& photos, const FeatureCalibrationOptions& options,
+    const std::vector<cv::Mat>& photos,
+    const FeatureCalibrationOptions& options,
     FeatureCalibrationReport* report = nullptr);
 
 // How a decoder reads unmarked images.

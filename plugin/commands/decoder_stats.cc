@@ -66,14 +66,16 @@ int RunDecoderStats(int argc, char** argv) {
   }
   const watergs::DecoderBalance b =
       watergs::MeasureBalance(*decoder, images, claimed, present_p);
-  std::cout << std::fixed << std::setprecision(3) << "decoder_stats: "
-            << b.images << (crop > 0 ? " crops" : " images")
-            << ", fraction of 1-bits " << b.ones_fraction << " (per bit "
-            << b.min_bit_ones << " .. " << b.max_bit_ones
-            << "), mean |correlation| between bits " << b.mean_abs_correlation
-            << "\ndecoder_stats: would pass the verdict (p <= " << present_p
-            << ", at most " << watergs::MaxErrorsForPresence(bits, present_p)
-            << " of " << bits << " bits wrong): " << b.false_positives
+  std::cout << std::fixed << std::setprecision(3)
+            << "decoder_stats: " << b.images
+            << (crop > 0 ? " crops" : " images") << ", fraction of 1-bits "
+            << b.ones_fraction << " (per bit " << b.min_bit_ones << " .. "
+            << b.max_bit_ones << "), mean |correlation| between bits "
+            << b.mean_abs_correlation
+            << "\ndecoder_stats: would pass the verdict (p <= "
+            << std::defaultfloat << present_p << std::fixed << ", at most "
+            << watergs::MaxErrorsForPresence(bits, present_p) << " of " << bits
+            << " bits wrong): " << b.false_positives
             << "; fewest bit errors seen " << b.min_bit_errors << "\n";
   if (!json_path.empty()) {
     std::ostringstream json;

@@ -106,8 +106,9 @@ int RunMakeDecoder(int argc, char** argv) {
     Fail("--crop must be in [16, 1024]");
   if (options.normalisation_crops < 1 || options.feature_crops < 1 ||
       balance_crops < 2 || steer_images < 0)
-    Fail("--normalisation_crops and --feature_crops must be positive, "
-         "--balance_crops at least 2");
+    Fail(
+        "--normalisation_crops and --feature_crops must be positive, "
+        "--balance_crops at least 2");
   if (!(options.whiten_floor > 0 && options.whiten_floor < 1))
     Fail("--whiten_floor must be in (0, 1)");
   if (!(options.logit_scale > 0 && options.logit_scale < 1e3))
@@ -120,9 +121,9 @@ int RunMakeDecoder(int argc, char** argv) {
   watergs::FeatureCalibrationReport report;
   std::unique_ptr<watergs::FeatureNet> net =
       watergs::CalibrateFeatureDecoder(photos, options, &report);
-  std::cout << std::fixed << std::setprecision(3)
-            << "calibrated on " << options.feature_crops << " crops of "
-            << report.photos_used << " photos in " << report.seconds
+  std::cout << std::fixed << std::setprecision(3) << "calibrated on "
+            << options.feature_crops << " crops of " << report.photos_used
+            << " photos in " << report.seconds
             << " s; feature covariance eigenvalues " << std::scientific
             << std::setprecision(3) << report.max_eigenvalue << " .. "
             << report.min_eigenvalue << " (" << report.floored_eigenvalues
@@ -147,18 +148,18 @@ int RunMakeDecoder(int argc, char** argv) {
        << ", \"floored_eigenvalues\": " << report.floored_eigenvalues;
   if (!validation_path.empty()) {
     watergs::FeatureDecoder decoder(std::move(net));
-    const HeldOutFigures f = MeasureHeldOut(
-        decoder, watergs::LoadPhotoFolder(validation_path), options.crop,
-        balance_crops, steer_images, options.seed);
+    const HeldOutFigures f =
+        MeasureHeldOut(decoder, watergs::LoadPhotoFolder(validation_path),
+                       options.crop, balance_crops, steer_images, options.seed);
     const watergs::DecoderBalance& b = f.balance;
     std::cout << std::setprecision(3) << "held-out unmarked crops: " << b.images
-              << ", fraction of 1-bits " << b.ones_fraction
-              << " (per bit " << b.min_bit_ones << " .. " << b.max_bit_ones
-              << "), mean |correlation| between bits "
-              << b.mean_abs_correlation << ", false positives at p <= 1e-6: "
-              << b.false_positives << " (fewest bit errors "
-              << b.min_bit_errors << "/" << bits << ", threshold "
-              << watergs::MaxErrorsForPresence(bits, 1e-6) << ")\n";
+              << ", fraction of 1-bits " << b.ones_fraction << " (per bit "
+              << b.min_bit_ones << " .. " << b.max_bit_ones
+              << "), mean |correlation| between bits " << b.mean_abs_correlation
+              << ", false positives at p <= 1e-6: " << b.false_positives
+              << " (fewest bit errors " << b.min_bit_errors << "/" << bits
+              << ", threshold " << watergs::MaxErrorsForPresence(bits, 1e-6)
+              << ")\n";
     if (f.steered)
       std::cout << "steering " << f.steered
                 << " held-out crops (pixel Adam, lr 0.002, margin 0.5): "

@@ -28,14 +28,16 @@ TEST(DefaultDecoderTest, IsASmallFortyEightBitFeatureDecoder) {
   EXPECT_LE(std::filesystem::file_size(kModel), 5u << 20);
   const NetworkFile file = ReadNetworkFile(kModel);
   EXPECT_EQ(file.kind, kFeatureDecoderKind);
-  std::unique_ptr<BitDecoder> decoder = LoadBitDecoder(kModel, Device::kCpu, 48);
+  std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(kModel, Device::kCpu, 48);
   EXPECT_EQ(decoder->NumBits(), 48);
 }
 
 // Every bit of a random message set on 128 px held-out crops by pixel-space
 // Adam, above 25 dB; no unmarked crop passes the verdict for that message.
 TEST(DefaultDecoderTest, SteerableAndBalancedOnHeldOutPhotos) {
-  std::unique_ptr<BitDecoder> decoder = LoadBitDecoder(kModel, Device::kCpu, 48);
+  std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(kModel, Device::kCpu, 48);
   const std::vector<cv::Mat> photos = LoadPhotoFolder(kPhotos);
   const std::vector<ImageRGB> crops = SamplePhotoCrops(photos, 128, 400, 17);
   std::mt19937 rng(29);

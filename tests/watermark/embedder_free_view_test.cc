@@ -24,8 +24,8 @@ using testing::Scene;
 // A tiny random-feature decoder whose logits are centred on the scene's
 // training renders and scaled to be sensitive (as a calibrated one is).
 std::unique_ptr<FeatureDecoder> TinyFeatureDecoder(const Scene& s, int bits) {
-  auto net = std::make_unique<FeatureNet>(FeatureDecoderConfig{bits, 24, 2, 3},
-                                          4);
+  auto net =
+      std::make_unique<FeatureNet>(FeatureDecoderConfig{bits, 24, 2, 3}, 4);
   std::mt19937 rng(8);
   std::normal_distribution<float> normal(0.f, 30.f);
   for (float& w : net->linear.weight.value) w = normal(rng);
@@ -41,14 +41,15 @@ std::unique_ptr<FeatureDecoder> TinyFeatureDecoder(const Scene& s, int bits) {
 
 double NovelViewBer(Embedder& embedder, const Scene& s, BitDecoder& decoder,
                     const Bits& message) {
-  const std::vector<RenderCamera> cameras = SampleFreeViewpoints(s.views, 6, 99);
+  const std::vector<RenderCamera> cameras =
+      SampleFreeViewpoints(s.views, 6, 99);
   const std::vector<std::string> names(cameras.size(), "free");
-  const ExtractionResult r =
-      ExtractWatermark(embedder.rasterizer(), embedder.model(), cameras, names,
-                       decoder, &message, {0, 0, 0}, VerificationThresholds{},
-                       RenderAttack{});
+  const ExtractionResult r = ExtractWatermark(
+      embedder.rasterizer(), embedder.model(), cameras, names, decoder,
+      &message, {0, 0, 0}, VerificationThresholds{}, RenderAttack{});
   double ber = 0;
-  for (const ViewDecode& v : r.views) ber += double(v.bit_errors) / message.size();
+  for (const ViewDecode& v : r.views)
+    ber += double(v.bit_errors) / message.size();
   return ber / r.views.size();
 }
 

@@ -172,23 +172,22 @@ TEST(FeatureDecoderCalibrationTest, LogitsAreWhiteOnTheCalibrationCrops) {
   const Eigen::MatrixXd cov = centred.transpose() * centred / (z.rows() - 1);
   const double s2 = options.logit_scale * options.logit_scale;
   EXPECT_LT(mean.cwiseAbs().maxCoeff(), 1e-3 * options.logit_scale);
-  EXPECT_LT((cov - s2 * Eigen::MatrixXd::Identity(bits, bits))
-                .cwiseAbs()
-                .maxCoeff(),
-            1e-3 * s2);
+  EXPECT_LT(
+      (cov - s2 * Eigen::MatrixXd::Identity(bits, bits)).cwiseAbs().maxCoeff(),
+      1e-3 * s2);
 }
 
 TEST(FeatureDecoderCalibrationTest, DeterministicForASeed) {
   const std::vector<cv::Mat> photos = LoadPhotoFolder(kPhotos);
   FeatureCalibrationOptions options = SmallCalibration();
-  const std::string a =
-      SerializeNetworkFile(FeatureNetToFile(*CalibrateFeatureDecoder(photos, options)));
-  const std::string b =
-      SerializeNetworkFile(FeatureNetToFile(*CalibrateFeatureDecoder(photos, options)));
+  const std::string a = SerializeNetworkFile(
+      FeatureNetToFile(*CalibrateFeatureDecoder(photos, options)));
+  const std::string b = SerializeNetworkFile(
+      FeatureNetToFile(*CalibrateFeatureDecoder(photos, options)));
   EXPECT_EQ(a, b);
   options.seed += 1;
-  const std::string c =
-      SerializeNetworkFile(FeatureNetToFile(*CalibrateFeatureDecoder(photos, options)));
+  const std::string c = SerializeNetworkFile(
+      FeatureNetToFile(*CalibrateFeatureDecoder(photos, options)));
   EXPECT_NE(a, c);
 }
 
@@ -221,10 +220,12 @@ TEST_F(FeatureDecoderFileTest, RoundTripAndRefusals) {
   FeatureDecoderConfig config{8, 12, 2, 3};
   auto net = RandomNet(config, 3);
   const ImageRGB image = RandomImage(20, 14, 9);
-  const std::vector<float> want = FeatureDecoder(RandomNet(config, 3)).Logits(image);
+  const std::vector<float> want =
+      FeatureDecoder(RandomNet(config, 3)).Logits(image);
   const NetworkFile file = FeatureNetToFile(*net);
   WriteNetworkFile(Path("d.bin"), file);
-  std::unique_ptr<BitDecoder> loaded = LoadBitDecoder(Path("d.bin"), Device::kCpu);
+  std::unique_ptr<BitDecoder> loaded =
+      LoadBitDecoder(Path("d.bin"), Device::kCpu);
   EXPECT_EQ(loaded->NumBits(), 8);
   EXPECT_EQ(loaded->Logits(image), want);
   EXPECT_THROW(LoadBitDecoder(Path("d.bin"), Device::kCpu, 48), Error);
@@ -285,7 +286,8 @@ TEST(FeatureDecoderCalibrationTest, SteerableAndBalancedOnHeldOutPhotos) {
   for (auto& b : target) b = rng() & 1;
   const std::vector<ImageRGB> crops = SamplePhotoCrops(held_out, 64, 200, 3);
   for (int i = 0; i < 2; ++i) {
-    const SteerResult r = SteerPixels(decoder, crops[i], target, 300, 0.002, 0.5);
+    const SteerResult r =
+        SteerPixels(decoder, crops[i], target, 300, 0.002, 0.5);
     EXPECT_EQ(r.bit_errors, 0) << i;
     EXPECT_GT(r.psnr, 25.0) << i;
   }
