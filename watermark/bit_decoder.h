@@ -11,6 +11,7 @@
 
 #include "gaussian/device.h"
 #include "gaussian/image.h"
+#include "watermark/tensor.h"
 
 namespace watergs {
 
@@ -34,6 +35,33 @@ class BitDecoder {
   BitDecoder(BitDecoder&&) = default;
   BitDecoder& operator=(const BitDecoder&) = default;
   BitDecoder& operator=(BitDecoder&&) = default;
+};
+
+// A CPU BitDecoder over a network on NCHW tensors: maps images to the
+// network's [-1, 1] input, keeps the last forward pass (a fine-tuning loop
+// asks for the logits and the gradient of the same render; a memcmp decides)
+// and maps the input gradient back to HWC. Subclasses supply the network.
+class CachedTensorDecoder : public BitDecoder {
+ public:
+  std::vector<float> Logits(const ImageRGB& image) override;
+  void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
+                     ImageRGB* dimage) override;
+
+ protected:
+  // input [1,3,H,W] in [-1, 1] -> logits [1,L,1,1].
+  virtual const Tensor& ForwardTensor(const Tensor& input) = 0;
+  // dlogits [1,L,1,1] -> dinput [1,3,H,W] of the last ForwardTensor.
+  virtual void BackwardTensor(const Tensor& dlogits, Tensor* dinput) = 0;
+
+ private:
+  // Runs the forward pass unless `image` is the cached input.
+  void ForwardIfNeeded(const ImageRGB& image);
+
+  // Network input of the last forward pass, and gradient buffers.
+  Tensor input_, dlogits_, dinput_;
+  // The image of the last forward pass (HWC) and its logits.
+  std::vector<float> cached_pixels_, logits_;
+  bool has_forward_ = false;
 };
 
 // Loads the decoder of a weights file onto `device` with Decoder::Load's

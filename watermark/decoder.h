@@ -18,8 +18,8 @@
 
 namespace watergs {
 
-// The CPU implementation of BitDecoder.
-class Decoder : public BitDecoder {
+// The CPU implementation of BitDecoder for HiDDeN decoders.
+class Decoder : public CachedTensorDecoder {
  public:
   // Loads the decoder of a weights file (see hidden_model.h); throws Error
   // naming the file when it is missing, truncated, corrupted, not a HiDDeN
@@ -33,29 +33,20 @@ class Decoder : public BitDecoder {
 
   // Message length L.
   int NumBits() const override;
-  // image (any size >= 1x1) -> L logits.
-  std::vector<float> Logits(const ImageRGB& image) override;
+  using CachedTensorDecoder::InputGradient;
   // image, dLoss/dLogits (L values) -> dLoss/dImage (same size as image).
-  // Re-runs the forward pass only when `image` differs from the last one.
-  void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
-                     ImageRGB* dimage) override;
   ImageRGB InputGradient(const ImageRGB& image,
                          const std::vector<float>& dlogits);
 
- private:
-  // Runs the forward pass unless `image` is the cached input.
-  void ForwardIfNeeded(const ImageRGB& image);
+ protected:
+  const Tensor& ForwardTensor(const Tensor& input) override;
+  void BackwardTensor(const Tensor& dlogits, Tensor* dinput) override;
 
+ private:
   // The model when loaded from a file (null when wrapped).
   std::unique_ptr<HiddenModel> owned_;
   // The model in use.
   HiddenModel* model_ = nullptr;
-  // Network input (NCHW, [-1,1]) of the last forward pass, and gradients.
-  Tensor input_, dlogits_, dinput_;
-  // The image of the last forward pass (HWC) and its logits.
-  std::vector<float> cached_pixels_, logits_;
-  // True once a forward pass has run.
-  bool has_forward_ = false;
 };
 
 }  // namespace watergs

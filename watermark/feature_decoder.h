@@ -97,7 +97,7 @@ std::unique_ptr<FeatureNet> FeatureNetFromFile(const std::string& path,
                                                int expected_bits = 0);
 
 // The CPU BitDecoder of a FeatureNet.
-class FeatureDecoder : public BitDecoder {
+class FeatureDecoder : public CachedTensorDecoder {
  public:
   // Loads a weights file with FeatureNetFromFile's checks.
   static std::unique_ptr<FeatureDecoder> Load(const std::string& path,
@@ -105,20 +105,14 @@ class FeatureDecoder : public BitDecoder {
   explicit FeatureDecoder(std::unique_ptr<FeatureNet> net);
 
   int NumBits() const override;
-  // image (at least pool x pool pixels) -> L logits.
-  std::vector<float> Logits(const ImageRGB& image) override;
-  // Re-runs the forward pass only when `image` differs from the last one.
-  void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
-                     ImageRGB* dimage) override;
   FeatureNet& net() { return *net_; }
 
- private:
-  void ForwardIfNeeded(const ImageRGB& image);
+ protected:
+  const Tensor& ForwardTensor(const Tensor& input) override;
+  void BackwardTensor(const Tensor& dlogits, Tensor* dinput) override;
 
+ private:
   std::unique_ptr<FeatureNet> net_;
-  Tensor input_, dlogits_, dinput_;
-  std::vector<float> cached_pixels_, logits_;
-  bool has_forward_ = false;
 };
 
 }  // namespace watergs

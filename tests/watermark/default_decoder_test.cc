@@ -10,6 +10,7 @@
 
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
+#include "tests/common/corrupt_copies.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/decoder_training.h"
 #include "watermark/feature_decoder.h"
@@ -59,27 +60,9 @@ TEST(DefaultDecoderTest, SteerableAndBalancedOnHeldOutPhotos) {
 }
 
 TEST(DefaultDecoderTest, RefusesCorruptedAndTruncatedCopies) {
-  const std::vector<uint8_t> bytes = ReadFileBytes(kModel);
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("watergs_default_decoder_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  const std::string path = (dir / "decoder_48.bin").string();
-  auto expect_refused = [&](const std::vector<uint8_t>& copy,
-                            const char* what) {
-    AtomicWriteFile(path, std::string(copy.begin(), copy.end()));
-    try {
-      LoadBitDecoder(path, Device::kCpu);
-      ADD_FAILURE() << what << " copy was accepted";
-    } catch (const Error& e) {
-      EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0u) << e.what();
-    }
-  };
-  std::vector<uint8_t> flipped = bytes;
-  flipped[bytes.size() / 2] ^= 0x01;
-  expect_refused(flipped, "bit-flipped");
-  expect_refused(std::vector<uint8_t>(bytes.begin(), bytes.end() - 100),
-                 "truncated");
-  std::filesystem::remove_all(dir);
+  testing::ExpectCorruptCopiesRefused(kModel, [](const std::string& copy) {
+    LoadBitDecoder(copy, Device::kCpu);
+  });
 }
 
 }  // namespace

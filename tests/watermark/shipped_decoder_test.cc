@@ -13,6 +13,7 @@
 
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
+#include "tests/common/corrupt_copies.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"
 
@@ -91,27 +92,8 @@ TEST(ShippedDecoderTest, EncoderIsInvisibleAndCoversCarryNoMessage) {
 }
 
 TEST(ShippedDecoderTest, RefusesCorruptedAndTruncatedCopies) {
-  const std::vector<uint8_t> bytes = ReadFileBytes(kModel);
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("watergs_shipped_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  const std::string path = (dir / "decoder_48.bin").string();
-  auto expect_refused = [&](const std::vector<uint8_t>& copy,
-                            const char* what) {
-    AtomicWriteFile(path, std::string(copy.begin(), copy.end()));
-    try {
-      Decoder::Load(path);
-      ADD_FAILURE() << what << " copy was accepted";
-    } catch (const Error& e) {
-      EXPECT_EQ(std::string(e.what()).rfind(path + ": ", 0), 0u) << e.what();
-    }
-  };
-  std::vector<uint8_t> flipped = bytes;
-  flipped[bytes.size() / 2] ^= 0x01;
-  expect_refused(flipped, "bit-flipped");
-  expect_refused(std::vector<uint8_t>(bytes.begin(), bytes.end() - 100),
-                 "truncated");
-  std::filesystem::remove_all(dir);
+  testing::ExpectCorruptCopiesRefused(
+      kModel, [](const std::string& copy) { Decoder::Load(copy); });
 }
 
 }  // namespace
