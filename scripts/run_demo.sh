@@ -6,12 +6,13 @@
 # each file (all 48 cameras; for the watermarked one also the 6 held-out
 # views alone and 8 free viewpoints), printing the verdicts. About 5 minutes on 2 idle cores.
 #   scripts/run_demo.sh [OUTPUT_DIR]
-# Environment: WATERGS_BIN (the CLI), WATERGS_DECODER (decoder weights;
+# Environment: WATERGS_BIN (the CLI), DEMO_SCENE (another workspace whose
+# images are 480x360), WATERGS_DECODER (decoder weights;
 # default watermark/models/decoder_48.bin), DEMO_TRAIN_ITERS, DEMO_EMBED_ITERS.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
-scene="$root/datasets_scripts/demo_scene"
+scene="${DEMO_SCENE:-$root/datasets_scripts/demo_scene}"
 out="${1:-$root/build/demo}"
 decoder="${WATERGS_DECODER:-$root/watermark/models/decoder_48.bin}"
 train_iters="${DEMO_TRAIN_ITERS:-2000}"
