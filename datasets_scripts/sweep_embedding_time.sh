@@ -37,6 +37,8 @@ Options:
   --distortions LIST    on (identity,gn:0.01,dropout:0.1,crop:0.1) and/or off (default on,off)
   --threads T           --num_threads for every command (default 1)
   --seed S              --seed for every command (default 0)
+  --embed_args "ARGS"   further embed options for every point, e.g. "--gamma 0.03
+                        --free_view_fraction 0.5 --densify off" (word-split)
   --keep_models         keep the watermarked PLYs (deleted otherwise)
   -h, --help            this text
 
@@ -61,6 +63,7 @@ distortion_list="on,off"
 threads=1
 seed=0
 keep_models=0
+embed_args=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --workspace) workspace="${2:?--workspace needs a value}"; shift 2 ;;
@@ -76,6 +79,7 @@ while [ $# -gt 0 ]; do
     --threads) threads="${2:?--threads needs a value}"; shift 2 ;;
     --seed) seed="${2:?--seed needs a value}"; shift 2 ;;
     --keep_models) keep_models=1; shift ;;
+    --embed_args) embed_args="${2?--embed_args needs a value}"; shift 2 ;;
     -h|--help) usage; exit 0 ;;
     *) usage >&2; die "unknown option '$1'" ;;
   esac
@@ -156,6 +160,8 @@ for len in "${lengths[@]}"; do
           --downscale "$downscale" --decoder "$dec" --message "$message" --output_path "$tmp_wm"
           --iterations "$iters" --crop_size "$crop" --distortions "$dist_arg"
           --num_threads "$threads" --seed "$seed" --eval)
+        # shellcheck disable=SC2206  # word-split on purpose
+        [ -z "$embed_args" ] || cmd+=($embed_args)
         echo "${cmd[*]}" | sed -e "s#$tmp_wm#$wm#" | rel >>"$commands"
         echo "sweep_embedding_time: $name ($(date -u +%T))" >&2
         t0=$(date +%s.%N)
