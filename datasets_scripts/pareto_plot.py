@@ -332,7 +332,7 @@ def cmd_plot_train(args):
 set terminal %s size 1000,%d font ",10" noenhanced
 set output "@PNG@"
 set multiplot layout %d,1 title "%s"
-set xlabel "training wall time (s, training steps only, 1 thread)"
+set xlabel "training wall time (s, training steps only; threads as in commands.txt)"
 set ylabel "held-out PSNR (dB)"
 set grid
 set key outside right
@@ -371,7 +371,7 @@ set terminal %s size 1000,900 font ",10" noenhanced
 set output "@PNG@"
 set multiplot layout 2,1 title "%s"
 set grid
-set xlabel "embedding wall time (s, whole embed command, 1 thread)"
+set xlabel "embedding wall time (s, whole embed command; threads as in commands.txt)"
 set ylabel "BER (fraction of bits wrong)"
 set key outside right
 set yrange [0:%.2f]
