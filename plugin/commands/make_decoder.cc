@@ -116,6 +116,8 @@ int RunMakeDecoder(int argc, char** argv) {
   // Refuse before the work: an output that is an input photo folder.
   if (watergs::SamePath(output_path, image_path))
     Fail("--output_path " + output_path + " is the photo folder");
+  watergs::CheckOutputFile(output_path);
+  if (!json_path.empty()) watergs::CheckOutputFile(json_path);
 
   const std::vector<cv::Mat> photos = watergs::LoadPhotoFolder(image_path);
   watergs::FeatureCalibrationReport report;

@@ -63,6 +63,9 @@ TEST(DecoderCli, BadInputIsAOneLineErrorAndWritesNothing) {
                      "--whiten_floor");
   ExpectOneLineError(RunCommand(MakeDecoderCommand(out) + " --channels 8"),
                      "channels");
+  // An output folder that does not exist is refused before the work.
+  ExpectOneLineError(RunCommand(MakeDecoderCommand(dir / "no/such/d.bin")),
+                     "d.bin");
   EXPECT_FALSE(std::filesystem::exists(out));
   // A file that is not a decoder.
   std::ofstream(dir / "garbage.bin") << "not a network file";
