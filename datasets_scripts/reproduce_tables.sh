@@ -35,6 +35,9 @@ Options:
   --decoder_for L:PATH      decoder for L-bit messages; repeat for the length table
                             (default 48:watermark/models/decoder_48.bin)
   --crop_size N             embed crop side (default 128)
+  --embed_args "ARGS"       further embed options for every run, word-split, e.g. the demo's
+                            "--free_view_fraction 0.5 --densify off" (crop and gamma:
+                            this script's --crop_size 0 --gamma 0.03)
   --lpips_weights PATH      LPIPS-VGG weights (default data/lpips/lpips_vgg.bin; column empty if absent)
   --num_threads N           threads per watergs call (default 0 = all cores)
   --note TEXT               line written at the top of tables.md
@@ -59,6 +62,7 @@ downscale_option=auto
 gamma_option=auto
 seeds_option=0,1,2
 crop_size=128
+embed_args=""
 lpips_weights="$repo_root/data/lpips/lpips_vgg.bin"
 num_threads=0
 note=""
@@ -84,6 +88,7 @@ while [ $# -gt 0 ]; do
     --seeds) need_value "$1" $#; seeds_option="$2" ;;
     --decoder_for) need_value "$1" $#; decoder_specs+=("$2") ;;
     --crop_size) need_value "$1" $#; crop_size="$2" ;;
+    --embed_args) need_value "$1" $#; embed_args="$2" ;;
     --lpips_weights) need_value "$1" $#; lpips_weights="$2" ;;
     --num_threads) need_value "$1" $#; num_threads="$2" ;;
     --note) need_value "$1" $#; note="$2" ;;
@@ -221,7 +226,7 @@ embed_run() {
     "$bin" embed --input_path "$raw_dir/point_cloud.ply" --workspace_path "$workspace" --downscale "$ds" \
     --decoder "$decoder" --message "$message" --output_path "$run_dir/watermarked.ply" \
     --iterations "$embed_iterations" --gamma "$gamma" --mask "$mask" --distortions "$distortions" \
-    --crop_size "$crop_size" --seed "$seed" --num_threads "$num_threads" --eval
+    --crop_size "$crop_size" --seed "$seed" --num_threads "$num_threads" --eval $embed_args
   run_step "$run_dir/eval.seconds" "$run_dir/eval.stdout" "eval $what" \
     "$bin" eval --raw_path "$raw_dir/point_cloud.ply" --input_path "$run_dir/watermarked.ply" \
     --workspace_path "$workspace" --downscale "$ds" --decoder "$decoder" --message "$message" \
