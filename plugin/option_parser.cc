@@ -49,7 +49,7 @@ OptionParser::OptionParser(std::string command, std::string summary)
       "device", po::value<std::string>(&device_text_)->default_value("cpu"),
       "cpu, cuda or auto (CUDA when built with it and a GPU is visible). "
       "The default stays cpu until the CUDA parity tests have passed on a "
-      "GPU (README, CUDA backend)");
+      "GPU (docs/cuda.md)");
 }
 
 std::string OptionParser::ShortestText(double value) {

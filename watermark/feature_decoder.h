@@ -40,7 +40,7 @@ struct FeatureDecoderConfig {
   // Message length L.
   int num_bits = 48;
   // Width C of the random feature layer.
-  int channels = 256;
+  int channels = 2048;
   // Side of the average pooling applied to the image first (1: none).
   int pool = 4;
   // Side of the convolution's kernel (odd).

@@ -25,11 +25,11 @@ struct FeatureCalibrationOptions {
   // Crops for the convolution's standardisation and for the mean and
   // covariance of the pooled features.
   int normalisation_crops = 256;
-  int feature_crops = 2048;
+  int feature_crops = 8192;
   // Covariance eigenvalues below floor x (their mean) are raised to it
   // before whitening: the smallest directions, estimated from few crops,
   // would otherwise be amplified without bound.
-  double whiten_floor = 1e-3;
+  double whiten_floor = 1e-5;
   // Standard deviation of each logit on the calibration crops.
   double logit_scale = 4.0;
   // Seeds the convolution, the crops and the projection.

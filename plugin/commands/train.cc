@@ -234,7 +234,7 @@ int RunTrain(int argc, char** argv) {
   parser.Add("moment_precision", &a.moment_precision,
              "Adam moments of all groups but positions: float32 (Inria's; "
              "795 bytes of training state per Gaussian at SH degree 3) or "
-             "bfloat16 with stochastic rounding (571 bytes; see the README "
+             "bfloat16 with stochastic rounding (571 bytes; see docs/benchmarks.md "
              "for its quality)");
   if (!parser.Parse(argc, argv)) return 0;
   a.device = DeviceName(parser.device());
