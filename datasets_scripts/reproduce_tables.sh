@@ -8,11 +8,17 @@
 #   (e) wall time of training and embedding
 # Every step is cached under OUT/work/ (a rerun skips finished steps, so the script can be interrupted);
 # OUT/tables.md, OUT/results.csv and OUT/commands.txt are written atomically at the end by aggregate_tables.py.
+# With --slurm, one Slurm array task per scene runs that scene's steps and a dependent job aggregates
+# (the submission code of scripts/slurm/watergs_batch.sh).
 set -euo pipefail
 
 script_name="$(basename "$0")"
 script_dir="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 repo_root="$(cd "$script_dir/.." && pwd)"
+# shellcheck source=lib_steps.sh
+source "$script_dir/lib_steps.sh"
+# shellcheck source=../scripts/slurm/lib_slurm.sh
+source "$repo_root/scripts/slurm/lib_slurm.sh"
 
 usage() {
   cat <<EOF
@@ -44,7 +50,17 @@ Options:
   --baseline NAME=JSON      a baseline run's extract/eval JSON (e.g. from baseline_hidden_3dgs.sh),
                             checked in claims.md against the paper's claim that baselines fail; repeatable
   -h, --help                this text
+
+On a Slurm cluster (docs/batch.md):
+  --slurm                   submit one array task per scene that still has steps to run, and a job that
+                            aggregates after them (afterany); with none left, aggregate here. The same
+                            command again resubmits only unfinished scenes (finished steps are cached)
+  --wait                    with --slurm: wait for the aggregate job and print where the tables are
+  --scene_index K           run only scene K's steps (0-based, in the order above), no tables; an array
+                            task's index when K is 'task' (\$SLURM_ARRAY_TASK_ID, \$JOB_COMPLETION_INDEX)
+  --aggregate_only          run no step: tables from the finished runs (unfinished ones are left out)
 EOF
+  slurm_options_usage | sed 's/^/  /'
 }
 
 log() { echo "[$(date -u +%H:%M:%S)] $*"; }
@@ -68,6 +84,8 @@ num_threads=0
 note=""
 decoder_specs=()
 baseline_args=()    # --baseline NAME=JSON pairs for check_claims.py
+forward_args=()     # the arguments an array task gets (all but the Slurm ones)
+slurm="" slurm_wait_for="" scene_index="" step_mode=run  # step_mode: run, check (count missing steps), skip
 scenes=()           # each: dataset|label|workspace|downscale|gamma
 datasets_asked=()   # each: dataset|dir
 
@@ -76,9 +94,13 @@ need_value() { [ "$2" -ge 2 ] || die "option $1 needs a value (see --help)"; }
 while [ $# -gt 0 ]; do
   case "$1" in
     -h | --help) usage; exit 0 ;;
+    --slurm) slurm=1; shift; continue ;;
+    --wait) slurm_wait_for=1; shift; continue ;;
+    --aggregate_only) step_mode=skip; shift; continue ;;
+    --scene_index) need_value "$1" $#; scene_index="$2"; shift 2; continue ;;
     --dataset)
       [ $# -ge 3 ] || die "--dataset needs NAME and DIR"
-      datasets_asked+=("$2|$3"); shift 3; continue ;;
+      datasets_asked+=("$2|$3"); forward_args+=("$1" "$2" "$3"); shift 3; continue ;;
     --output_path) need_value "$1" $#; out_dir="$2" ;;
     --bin) need_value "$1" $#; bin="$2" ;;
     --train_iterations) need_value "$1" $#; train_iterations="$2" ;;
@@ -93,11 +115,23 @@ while [ $# -gt 0 ]; do
     --num_threads) need_value "$1" $#; num_threads="$2" ;;
     --note) need_value "$1" $#; note="$2" ;;
     --baseline) need_value "$1" $#; baseline_args+=(--baseline "$2") ;;
-    -*) die "unknown option '$1' (see --help)" ;;
-    *) scenes+=("custom|$(basename "$1")|$1||"); shift; continue ;;
+    -*)
+      slurm_take_option "$1" "${2-}" || die "unknown option '$1' (see --help)"
+      need_value "$1" $#
+      shift 2; continue ;;
+    *) scenes+=("custom|$(basename "$1")|$1||"); forward_args+=("$1"); shift; continue ;;
   esac
+  forward_args+=("$1" "$2")
   shift 2
 done
+slurm_check_options cpu
+if [ "$scene_index" = task ]; then
+  scene_index="${SLURM_ARRAY_TASK_ID:-${JOB_COMPLETION_INDEX:-}}"
+  [ -n "$scene_index" ] || die "--scene_index task outside an array task (no SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX)"
+fi
+[ -z "$scene_index" ] || [[ "$scene_index" =~ ^[0-9]+$ ]] || die "--scene_index '$scene_index' is not a whole number"
+# In an array task, "all cores" are the task's own.
+[ "$num_threads" != 0 ] || [ -z "${SLURM_CPUS_PER_TASK:-}" ] || num_threads="$SLURM_CPUS_PER_TASK"
 
 is_uint() { [[ "$1" =~ ^[0-9]+$ ]]; }
 is_uint "$train_iterations" || die "--train_iterations '$train_iterations' is not a whole number"
@@ -153,6 +187,8 @@ if [ ${#scenes[@]} -eq 0 ] && [ ${#datasets_asked[@]} -eq 0 ]; then
   scenes=("offline|demo_scene|$script_dir/demo_scene||" "offline|demo_scene_v2|$script_dir/demo_scene_v2||")
 fi
 [ ${#scenes[@]} -gt 0 ] || die "no scene to run (every dataset asked for is absent)"
+[ -z "$scene_index" ] || [ "$scene_index" -lt ${#scenes[@]} ] ||
+  die "--scene_index $scene_index: there are ${#scenes[@]} scenes (0-$((${#scenes[@]} - 1)))"
 
 declare -A label_seen=()
 for entry in "${scenes[@]}"; do
@@ -183,26 +219,19 @@ trap 'rm -f "$commands_file" "$manifest_file"' EXIT
 } >"$commands_file"
 
 # Runs a watergs command unless DONE exists; then records its wall time (seconds) in DONE atomically.
+# With step_mode check or skip, an unfinished step only counts in steps_missing.
+steps_missing=0
 run_step() {
   local done_file="$1" log_file="$2" what="$3"
   shift 3
   printf '%q ' "$@" | sed "s|^$bin |watergs |; s|$repo_root/||g; s|$out_dir/||g" >>"$commands_file"
   echo >>"$commands_file"
-  if [ -f "$done_file" ]; then
-    log "cached: $what ($(cat "$done_file") s)"
-    return
+  if [ "$step_mode" != run ] && [ ! -f "$done_file" ]; then
+    steps_missing=$((steps_missing + 1))
+    [ "$step_mode" = check ] || log "not finished, left out: $what"
+    return 0
   fi
-  log "running: $what"
-  local start end
-  start=$(date +%s%N)
-  if ! nice -n 10 "$@" >"$log_file" 2>&1; then
-    tail -n 5 "$log_file" >&2
-    die "$what failed (log: $log_file)"
-  fi
-  end=$(date +%s%N)
-  awk -v ns=$((end - start)) 'BEGIN { printf "%.3f\n", ns / 1e9 }' >"$done_file.tmp"
-  mv "$done_file.tmp" "$done_file"
-  log "done: $what in $(cat "$done_file") s"
+  step_run "$done_file" "$log_file" "$what" "$@" || die "$what failed (log: $log_file)"
 }
 
 # Deterministic L-bit message for (L, seed), the same on every scene.
@@ -221,7 +250,7 @@ embed_run() {
   [ "$dl" = on ] || distortions=none
   mkdir -p "$run_dir"
   message="bits:$(message_bits "$length" "$seed")"
-  local what="$dataset/$label mask=$mask DL=$dl L=$length seed=$seed"
+  local what="$dataset/$label mask=$mask DL=$dl L=$length seed=$seed" missing_before=$steps_missing
   run_step "$run_dir/embed.seconds" "$run_dir/embed.log" "embed $what ($embed_iterations it)" \
     "$bin" embed --input_path "$raw_dir/point_cloud.ply" --workspace_path "$workspace" --downscale "$ds" \
     --decoder "$decoder" --message "$message" --output_path "$run_dir/watermarked.ply" \
@@ -249,11 +278,14 @@ embed_run() {
       rm -f "$run_dir/attacked_$name.ply"  # large; the evaluation above is what is kept
     done
   fi
+  [ "$steps_missing" -eq "$missing_before" ] || return 0  # unfinished: not in the tables
   printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$dataset" "$label" "$mask" "$dl" "$length" "$seed" \
     "$run_dir" "$raw_dir" "$ds" >>"$manifest_file"
 }
 
-for entry in "${scenes[@]}"; do
+# Every step of one scene (run, checked or skipped by step_mode).
+scene_steps() {
+  local entry="$1" dataset label workspace ds gamma scene_dir raw_dir settings_dir seed mask length
   IFS='|' read -r dataset label workspace ds gamma <<<"$entry"
   [ "$downscale_option" = auto ] || ds="$downscale_option"
   [ -n "$ds" ] || ds=1
@@ -262,7 +294,7 @@ for entry in "${scenes[@]}"; do
   scene_dir="$out_dir/work/$dataset/$label"
   raw_dir="$scene_dir/raw_ds${ds}_it$train_iterations"
   mkdir -p "$raw_dir"
-  log "scene $dataset/$label ($workspace, downscale $ds, gamma $gamma)"
+  [ "$step_mode" = check ] || log "scene $dataset/$label ($workspace, downscale $ds, gamma $gamma)"
   run_step "$raw_dir/train.seconds" "$raw_dir/train.stdout" "train $dataset/$label ($train_iterations it)" \
     "$bin" train --workspace_path "$workspace" --output_path "$raw_dir" --downscale "$ds" \
     --iterations "$train_iterations" --seed 0 --num_threads "$num_threads" --eval
@@ -282,7 +314,47 @@ for entry in "${scenes[@]}"; do
       embed_run "$dataset" "$label" "$workspace" "$ds" "$gamma" "$raw_dir" "$settings_dir" ALL on "$length" "$seed" no
     done
   done
+}
+
+if [ -n "$scene_index" ]; then
+  scene_steps "${scenes[$scene_index]}"
+  log "scene $scene_index done; the tables come from a run without --scene_index (or --aggregate_only)"
+  exit 0
+fi
+
+if [ -n "$slurm" ]; then
+  # Scenes with unfinished steps, found by walking every scene's steps without running them.
+  step_mode=check
+  pending=""
+  for k in "${!scenes[@]}"; do
+    steps_missing=0
+    scene_steps "${scenes[$k]}"
+    [ "$steps_missing" -eq 0 ] || pending+="${pending:+,}$k"
+  done
+  step_mode=run
+  if [ -n "$pending" ]; then
+    sub="$out_dir/submissions/$(date -u +%Y%m%dT%H%M%SZ)-$$"
+    mkdir -p "$sub"
+    common=(bash "$script_dir/$script_name" "${forward_args[@]}" --output_path "$out_dir" --bin "$bin")
+    slurm_write_job "$sub/scene.sbatch" "${common[@]}" --scene_index task
+    slurm_write_job "$sub/aggregate.sbatch" "${common[@]}" --aggregate_only
+    slurm_submit "$sub" watergs-reproduce "$pending" "$sub/scene.sbatch" "$sub/aggregate.sbatch"
+    log "submitted array job $slurm_array_job (scenes $pending of ${#scenes[@]}) and aggregate job" \
+      "$slurm_aggregate_job; logs in $sub"
+    [ -n "$slurm_wait_for" ] || exit 0
+    slurm_wait "$slurm_aggregate_job"
+    [ "$out_dir/tables.md" -nt "$sub/scene.sbatch" ] ||
+      die "aggregate job $slurm_aggregate_job wrote no new tables (log: $sub/aggregate-$slurm_aggregate_job.out)"
+    log "tables: $out_dir/tables.md, $out_dir/claims.md, $out_dir/results.csv"
+    exit 0
+  fi
+  log "every scene's steps are finished: nothing to submit; aggregating here"
+fi
+
+for entry in "${scenes[@]}"; do
+  scene_steps "$entry"
 done
+[ -s "$manifest_file" ] || die "no finished run to make tables from"
 
 log "aggregating into $out_dir/tables.md and $out_dir/results.csv"
 settings="train_iterations=$train_iterations, embed_iterations=$embed_iterations, downscale=$downscale_option,"

@@ -13,6 +13,9 @@ pkgs+=(povray povray-includes unzip curl)
 pkgs+=(clang libclang-rt-14-dev)
 # Accuracy-vs-time plots (datasets_scripts/sweep_*_time.sh, pareto_plot.py, tested by CTest): PNGs via gnuplot.
 pkgs+=(gnuplot-nox python3)
+# Batch runs (scripts/slurm/): the CTest test starts a real single-node Slurm (slurmctld, slurmd, munged);
+# python3-yaml checks the Kubernetes manifests (scripts/k8s/).
+pkgs+=(slurm-wlm munge python3-yaml)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
