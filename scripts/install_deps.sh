@@ -13,6 +13,8 @@ pkgs+=(povray povray-includes unzip curl)
 pkgs+=(clang libclang-rt-14-dev)
 # Accuracy-vs-time plots (datasets_scripts/sweep_*_time.sh, pareto_plot.py, tested by CTest): PNGs via gnuplot.
 pkgs+=(gnuplot-nox python3)
+# The ownership report's browser test (tests/plugin/report_cli_test.cc, scripts/screenshot_report.sh): headless Chromium.
+pkgs+=(chromium)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
