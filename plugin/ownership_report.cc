@@ -572,6 +572,11 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
   data["files"] = files_json;
   data["claim"] = nlohmann::json::parse(ExtractionToJson(claim));
   data["evaluation"] = nlohmann::json::parse(EvaluationToJson(ev));
+  // The decoder's outputs too: what a check of a listed command compares.
+  for (size_t k = 0; k < ev.robustness.size(); ++k) {
+    data["evaluation"]["robustness"][k]["mean_logits"] =
+        ev.robustness[k].extraction.mean_logits;
+  }
   nlohmann::json commands = nlohmann::json::array();
   for (const ReportCommand& c : r.commands) {
     commands.push_back({{"caption", c.caption}, {"command", c.command}});
