@@ -5,7 +5,8 @@
 # noise, dropout, crop), then report the held-out PSNR cost and extract from
 # each file (all 48 cameras; for the watermarked one also the 6 held-out
 # views alone and 8 free viewpoints), printing the verdicts, and write the
-# ownership report (OUTPUT_DIR/report.html). About 5 minutes on 2 idle cores.
+# ownership report (OUTPUT_DIR/report.html). About 6 minutes on 2 idle cores
+# (one of them the report).
 #   scripts/run_demo.sh [OUTPUT_DIR]
 # Environment: WATERGS_BIN (the CLI), DEMO_SCENE (another workspace whose
 # images are 480x360), WATERGS_DECODER (decoder weights;
