@@ -369,8 +369,11 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
   h << "<h1>Watermark ownership report</h1>\n<p class=\"sub\">WATER-GS "
        "watermark of a 3D Gaussian Splatting model, checked by "
     << HtmlEscape(r.generator) << " on " << ev.view_names.size()
-    << (ev.view_names.size() == 1 ? " view" : " views") << " of "
-    << HtmlEscape(r.workspace_path) << ".</p>\n";
+    << (ev.view_names.size() == 1 ? " view" : " views");
+  if (r.workspace_views > ev.view_names.size()) {
+    h << " (of " << r.workspace_views << " cameras)";
+  }
+  h << " of " << HtmlEscape(r.workspace_path) << ".</p>\n";
 
   // The claim.
   h << "<section class=\"card claim " << verdict_class << "\" id=\"claim\">\n"
