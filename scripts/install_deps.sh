@@ -16,6 +16,8 @@ pkgs+=(gnuplot-nox python3)
 # Batch runs (scripts/slurm/): the CTest test starts a real single-node Slurm (slurmctld, slurmd, munged);
 # python3-yaml checks the Kubernetes manifests (scripts/k8s/).
 pkgs+=(slurm-wlm munge python3-yaml)
+# The ownership report's browser test (tests/plugin/report_cli_test.cc, scripts/screenshot_report.sh): headless Chromium.
+pkgs+=(chromium)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

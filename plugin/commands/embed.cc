@@ -21,10 +21,13 @@
 #include "plugin/command.h"
 #include "plugin/embed_inputs.h"
 #include "plugin/option_parser.h"
+#include "plugin/ownership_report.h"
+#include "plugin/report_evidence.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/embedder.h"
+#include "watermark/evaluation.h"
 #include "watermark/message.h"
 
 namespace watergs {
@@ -33,7 +36,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 struct EmbedArgs {
-  std::string input_path, output_path, decoder_path, message;
+  std::string input_path, output_path, decoder_path, message, report_path;
   WorkspaceOptions workspace;
   int64_t iterations = 10000;
   double gamma = 0.3, beta = 0.2;
@@ -74,6 +77,73 @@ void Validate(const EmbedArgs& a) {
     Fail("--free_view_fraction must be in [0, 1]");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
   CheckOutputFile(a.output_path);  // before the fine-tuning, not after
+  if (!a.report_path.empty()) {
+    for (const std::string& path :
+         {a.input_path, a.output_path, a.decoder_path}) {
+      if (SamePath(path, a.report_path)) {
+        Fail("embed: --report " + a.report_path +
+             " is one of the inputs or outputs");
+      }
+    }
+    CheckOutputFile(a.report_path);
+  }
+}
+
+// The ownership report of the written model on all of the workspace's
+// cameras, with eval's default attacks; `watergs report` on the files
+// writes the same page.
+void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
+                      Rasterizer& rasterizer, const GaussianModel& raw,
+                      const GaussianModel& watermarked,
+                      const WorkspaceViews& views, BitDecoder& decoder,
+                      const Bits& message,
+                      const std::array<float, 3>& background) {
+  EvaluationOptions options;
+  options.background = background;
+  options.show_progress = true;
+  options.lpips_note = "not computed (embed --report)";
+  options.ground_truth = true;
+  std::vector<size_t> all(views.NumViews());
+  for (size_t k = 0; k < all.size(); ++k) all[k] = k;
+  ReportRequest request;
+  request.raw_path = a.input_path;
+  request.watermarked_path = a.output_path;
+  request.decoder_path = a.decoder_path;
+  request.message_text = a.message;
+  request.workspace = a.workspace;
+  request.background = a.background;
+  request.generator = std::string("watergs ") + WATERGS_VERSION;
+  request.commands.push_back(
+      {"The embedding, as run", CommandLine(argc, argv)});
+  std::string report_command =
+      "watergs report --raw_path " + ShellQuote(a.input_path) +
+      " --input_path " + ShellQuote(a.output_path) + " --workspace_path " +
+      ShellQuote(a.workspace.workspace_path);
+  if (!a.workspace.input_path.empty()) {
+    report_command += " --sparse_path " + ShellQuote(a.workspace.input_path);
+  }
+  if (!a.workspace.image_path.empty()) {
+    report_command += " --image_path " + ShellQuote(a.workspace.image_path);
+  }
+  if (a.workspace.downscale != 1) {
+    report_command += " --downscale " + std::to_string(a.workspace.downscale);
+  }
+  report_command += " --decoder " + ShellQuote(a.decoder_path) + " --message " +
+                    ShellQuote(a.message) + " --output_path " +
+                    ShellQuote(a.report_path);
+  if (a.background != "0,0,0") {
+    report_command += " --background " + ShellQuote(a.background);
+  }
+  request.commands.push_back(
+      {"This report, from the files (every figure in it)", report_command});
+  EvaluationReport evaluation = EvaluateWatermark(
+      rasterizer, raw, watermarked, views, all, decoder, message, options);
+  const std::string html = OwnershipReportToHtml(CollectOwnershipReport(
+      rasterizer, raw, watermarked, {}, views, all, views.NumViews(), decoder,
+      message, options, std::move(evaluation), request));
+  AtomicWriteFile(a.report_path, html);
+  std::printf("embed: wrote %s (%zu kB)\n", a.report_path.c_str(),
+              html.size() / 1000);
 }
 
 // Seconds of one forward + backward pass of the rasterizer at `rect`
@@ -156,6 +226,9 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("checkpoint_every", &a.checkpoint_every,
              "Write OUTPUT.ckpt every N iterations (0 = never)");
   parser.AddFlag("resume", &a.resume, "Continue from OUTPUT.ckpt");
+  parser.Add("report", &a.report_path,
+             "Also write the ownership report (HTML, see watergs report) of "
+             "the written model on all cameras to this file");
   parser.AddFlag(
       "eval", &a.eval,
       "Fine-tune on the training views only, holding out every 8th "
@@ -265,6 +338,11 @@ int RunEmbed(int argc, char** argv) {
         frame_s / crop_s);
   }
   std::printf("embed: wrote %s\n", a.output_path.c_str());
+  if (!a.report_path.empty()) {
+    WriteEmbedReport(a, argc, argv, embedder.rasterizer(), raw,
+                     embedder.model(), views, *in.decoder, message,
+                     options.background);
+  }
   return 0;
 }
 

@@ -16,6 +16,8 @@
 #include "gaussian/ply_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
+#include "plugin/ownership_report.h"
+#include "plugin/report_evidence.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
@@ -76,6 +78,7 @@ std::unique_ptr<Lpips> LoadLpips(const std::string& path, bool given,
 
 int RunEval(int argc, char** argv) {
   std::string raw_path, input_path, decoder_path, message, output_path;
+  std::string report_path;
   std::string model_attacks = kDefaultModelAttacks;
   std::string image_attacks = kDefaultImageAttacks;
   std::string lpips_path = "data/lpips/lpips_vgg.bin";
@@ -125,6 +128,9 @@ int RunEval(int argc, char** argv) {
   parser.Add("background", &background, "r,g,b, black or white");
   parser.Add("seed", &seed, "Seed of the random attacks");
   parser.Add("num_threads", &num_threads, "Threads (0 = all cores)");
+  parser.Add("report", &report_path,
+             "Also write the ownership report (HTML, see watergs report) of "
+             "these views to this file");
   if (!parser.Parse(argc, argv)) return 0;
   if (max_views < 0) Fail("eval: --max_views must be >= 0");
   if (!(present_p > 0 && present_p < 0.01)) {
@@ -134,6 +140,14 @@ int RunEval(int argc, char** argv) {
   if (!output_path.empty()) {
     CheckOutputFile(output_path + ".json");  // before the work, not after
     CheckOutputFile(output_path + ".md");
+  }
+  if (!report_path.empty()) {
+    for (const std::string& input : {raw_path, input_path, decoder_path}) {
+      if (SamePath(input, report_path)) {
+        Fail("eval: --report " + report_path + " is one of the inputs");
+      }
+    }
+    CheckOutputFile(report_path);
   }
 
   EvaluationOptions options;
@@ -177,9 +191,10 @@ int RunEval(int argc, char** argv) {
       SelectViews(workspace, which_views, max_views);
   for (const std::string& notice : notices) std::cerr << notice << "\n";
 
-  const EvaluationReport report = EvaluateWatermark(
-      *MakeRasterizer(parser.device()), raw.model, watermarked.model, views,
-      eval_views, *decoder, bits, options);
+  auto rasterizer = MakeRasterizer(parser.device());
+  const EvaluationReport report =
+      EvaluateWatermark(*rasterizer, raw.model, watermarked.model, views,
+                        eval_views, *decoder, bits, options);
   // "1 held-out view", "9 views".
   const std::string views_text = std::to_string(eval_views.size()) +
                                  (which_views == "test" ? " held-out" : "") +
@@ -196,6 +211,25 @@ int RunEval(int argc, char** argv) {
     AtomicWriteFile(output_path + ".md", markdown);
     std::cout << "\neval: wrote " << output_path << ".json and " << output_path
               << ".md\n";
+  }
+  if (!report_path.empty()) {
+    ReportRequest request;
+    request.raw_path = raw_path;
+    request.watermarked_path = input_path;
+    request.decoder_path = decoder_path;
+    request.message_text = message;
+    request.workspace = workspace_options;
+    request.background = background;
+    request.generator = std::string("watergs ") + WATERGS_VERSION;
+    request.commands.push_back(
+        {"This evaluation and report (every figure in it)",
+         CommandLine(argc, argv)});
+    const std::string html = OwnershipReportToHtml(CollectOwnershipReport(
+        *rasterizer, raw.model, watermarked.model, {}, views, eval_views,
+        views.NumViews(), *decoder, bits, options, report, request));
+    AtomicWriteFile(report_path, html);
+    std::cout << "eval: wrote " << report_path << " (" << html.size() / 1000
+              << " kB)\n";
   }
   return 0;
 }
