@@ -13,6 +13,8 @@ pkgs+=(povray povray-includes unzip curl)
 pkgs+=(clang libclang-rt-14-dev)
 # Accuracy-vs-time plots (datasets_scripts/sweep_*_time.sh, pareto_plot.py, tested by CTest): PNGs via gnuplot.
 pkgs+=(gnuplot-nox python3)
+# The Python module (python/, docs/python.md): pybind11 and the headers to build it, numpy for its arrays, pytest for its tests.
+pkgs+=(pybind11-dev python3-dev python3-numpy python3-pytest)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
