@@ -41,8 +41,8 @@ def _value_text(command, name, value):
     """One option value as the command line's text; TypeError for a type
     the CLI cannot take, Error for a non-finite number."""
     if isinstance(value, bool):
-        raise TypeError(f"{command}(): {name}={value!r} is a flag "
-                        f"inside a list")
+        raise TypeError(f"{command}(): {name} lists {value!r}: a list holds "
+                        "numbers or text")
     if isinstance(value, str):
         return value
     if isinstance(value, os.PathLike):
@@ -67,13 +67,14 @@ def _words(command, options):
     (or numpy array) is written comma-separated ("7000,30000", "1,1,1")."""
     words = []
     for name, value in options.items():
+        # numpy arrays and scalars (numpy.bool_ included) as Python values.
+        if hasattr(value, "tolist") and not isinstance(value, str):
+            value = value.tolist()
         if value is None or value is False:
             continue
         if value is True:
             words.append("--" + name)
             continue
-        if hasattr(value, "tolist") and not isinstance(value, str):
-            value = value.tolist()
         if isinstance(value, (list, tuple)):
             text = ",".join(_value_text(command, name, v) for v in value)
         else:

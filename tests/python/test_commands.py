@@ -59,9 +59,18 @@ def test_raising_callback_stops_training_cleanly(tmp_path):
                          quiet=True).iterations == 3
 
 
-def test_thread_count_is_restored_after_a_command(trained, tmp_path):
+def test_option_values_and_thread_count_restored(trained, tmp_path):
+    # numpy values and lists as the command line writes them.
     one = watergs.train(SCENE, tmp_path / "one", downscale=DOWNSCALE,
-                        iterations=2, num_threads=1, quiet=True)
+                        iterations=np.int64(2), num_threads=1,
+                        eval=np.bool_(True), background=np.ones(3),
+                        test_iterations=[1, 2], compact_optimizer=False,
+                        sh_degree=None, quiet=True)
+    assert one.report["eval"] is True and one.report["iterations"] == 2
+    assert one.report["compact_optimizer"] is False
+    assert one.report["sh_degree"] == 3
+    log = (tmp_path / "one" / "train_log.jsonl").read_text().splitlines()
+    assert sum("test_psnr" in line for line in log) == 2, log
     assert one.report["num_threads"] == 1
     after = watergs.train(SCENE, tmp_path / "after", downscale=DOWNSCALE,
                           iterations=2, quiet=True)
