@@ -8,6 +8,23 @@
 #include <sstream>
 
 namespace watergs {
+namespace {
+
+thread_local ProgressObserver progress_observer;
+
+void Notify(const std::string& label, int64_t done, int64_t total,
+            const std::string& status, bool finished) {
+  if (progress_observer) {
+    progress_observer(ProgressEvent{label, done, total, status, finished});
+  }
+}
+
+}  // namespace
+
+ProgressObserver SetProgressObserver(ProgressObserver observer) {
+  std::swap(observer, progress_observer);
+  return observer;
+}
 
 void EtaEstimator::Add(int64_t done, double seconds, double load) {
   latest_ = {done, seconds, load};
@@ -71,6 +88,7 @@ void ProgressBar::Print(const std::string& line) {
 }
 
 void ProgressBar::Update(int64_t done, const std::string& status) {
+  Notify(label_, done, total_, status, false);
   const auto now = std::chrono::steady_clock::now();
   eta_.Add(done, ElapsedSeconds(), load_);
   // Terminals get 5 redraws a second; logs one line every 10 seconds.
@@ -82,6 +100,7 @@ void ProgressBar::Update(int64_t done, const std::string& status) {
 }
 
 void ProgressBar::Finish(const std::string& status) {
+  Notify(label_, total_, total_, status, true);
   Draw(total_, status, true);
 }
 

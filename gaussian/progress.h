@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <string>
 
 namespace watergs {
@@ -36,6 +37,27 @@ class EtaEstimator {
   // The latest sample (samples_ may hold an older one at its end).
   Sample latest_{0, 0, 0};
 };
+
+// What a ProgressBar tells its observer (below).
+struct ProgressEvent {
+  std::string label;
+  int64_t done = 0;
+  int64_t total = 0;
+  // The figures appended to the line ("loss 0.031  41234 Gaussians").
+  std::string status;
+  // True at Finish.
+  bool finished = false;
+};
+
+// Called at every Update and at Finish of the ProgressBars of the thread
+// that installed it, before the redraw throttling: lets a program embedding
+// the library (the Python module) show progress its own way and stop a job
+// by throwing from it, which unwinds the job as an error would. Bars are
+// only updated outside parallel regions, so the throw is safe.
+using ProgressObserver = std::function<void(const ProgressEvent&)>;
+// Installs `observer` for the calling thread (an empty one removes it);
+// returns the one it replaces.
+ProgressObserver SetProgressObserver(ProgressObserver observer);
 
 class ProgressBar {
  public:

@@ -13,7 +13,7 @@ dir=build-fuzz
 jobs="${FUZZ_BUILD_JOBS:-2}"
 
 cmake -S . -B "$dir" -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DWATERGS_FUZZ=ON -DWATERGS_BUILD_TESTS=OFF -DWATERGS_NATIVE_ARCH=OFF >/dev/null
+  -DWATERGS_FUZZ=ON -DWATERGS_BUILD_TESTS=OFF -DWATERGS_NATIVE_ARCH=OFF -DWATERGS_PYTHON=OFF >/dev/null
 mapfile -t all < <(cd fuzz && ls ./*_fuzzer.cc | sed 's|^\./||; s|_fuzzer\.cc$||')
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all[@]}")

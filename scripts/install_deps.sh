@@ -18,6 +18,8 @@ pkgs+=(gnuplot-nox python3)
 pkgs+=(slurm-wlm munge python3-yaml)
 # The ownership report's browser test (tests/plugin/report_cli_test.cc, scripts/screenshot_report.sh): headless Chromium.
 pkgs+=(chromium)
+# The Python module (python/, docs/python.md): pybind11 and the headers to build it, numpy for its arrays, pytest for its tests.
+pkgs+=(pybind11-dev python3-dev python3-numpy python3-pytest)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -15,8 +15,11 @@ kind="${1:-address}"
 shift || true
 jobs="${WATERGS_SANITIZE_JOBS:-2}"
 # The CUDA backend is left out: its kernels need a GPU (scripts/gpu_check.sh runs
-# compute-sanitizer there); the host code these sanitizers check is the same.
-common=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DWATERGS_NATIVE_ARCH=OFF -DWATERGS_CUDA=OFF)
+# compute-sanitizer there); the host code these sanitizers check is the same. So is the
+# Python module: an instrumented extension does not load into an uninstrumented
+# interpreter, and it runs the code the CLI tests run.
+common=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DWATERGS_NATIVE_ARCH=OFF -DWATERGS_CUDA=OFF
+  -DWATERGS_PYTHON=OFF)
 
 case "$kind" in
   address)

@@ -1,11 +1,15 @@
 // Tests of the progress-line helpers: the running average shown with a
-// loss, the ETA estimate and the duration format of the ETA.
+// loss, the ETA estimate, the duration format of the ETA, and the progress
+// observer (what the Python module's callbacks and Ctrl-C go through).
 #include "gaussian/progress.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cstdint>
+#include <stdexcept>
+#include <thread>
+#include <vector>
 
 namespace watergs {
 namespace {
@@ -65,6 +69,61 @@ TEST(FormatDuration, UsesTheLargestUnitThatFits) {
   EXPECT_EQ(FormatDuration(12.3), "12.3s");
   EXPECT_EQ(FormatDuration(185), "3m05s");
   EXPECT_EQ(FormatDuration(3720), "1h02m");
+}
+
+// Every Update (not only the redrawn ones) and the Finish reach the
+// observer of the thread that installed it, and no other thread's.
+TEST(ProgressObserver, SeesEveryStepOfItsThreadsBars) {
+  std::vector<ProgressEvent> events;
+  const ProgressObserver previous = SetProgressObserver(
+      [&events](const ProgressEvent& e) { events.push_back(e); });
+  EXPECT_FALSE(previous);
+  {
+    ProgressBar bar("job", 3);
+    bar.Update(1, "a");
+    bar.Update(2, "b");
+    bar.Update(3, "c");
+    bar.Finish("done");
+  }
+  std::thread other([] {
+    ProgressBar bar("other", 1);
+    bar.Update(1);
+  });
+  other.join();
+  const ProgressObserver mine = SetProgressObserver(nullptr);
+  EXPECT_TRUE(mine);
+  ASSERT_EQ(events.size(), 4u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(events[k].label, "job");
+    EXPECT_EQ(events[k].done, k + 1);
+    EXPECT_EQ(events[k].total, 3);
+    EXPECT_EQ(events[k].status, std::string(1, char('a' + k)));
+    EXPECT_FALSE(events[k].finished);
+  }
+  EXPECT_TRUE(events[3].finished);
+  EXPECT_EQ(events[3].done, 3);
+  EXPECT_EQ(events[3].status, "done");
+  // Removed: bars no longer report.
+  ProgressBar("job", 1).Update(1);
+  EXPECT_EQ(events.size(), 4u);
+}
+
+// A throwing observer stops the loop that updates the bar.
+TEST(ProgressObserver, ThrowingStopsTheJob) {
+  SetProgressObserver([](const ProgressEvent& e) {
+    if (e.done == 5) throw std::runtime_error("stop");
+  });
+  int64_t reached = 0;
+  try {
+    ProgressBar bar("job", 100);
+    for (int64_t step = 1; step <= 100; ++step) {
+      reached = step;
+      bar.Update(step);
+    }
+  } catch (const std::runtime_error&) {
+  }
+  SetProgressObserver(nullptr);
+  EXPECT_EQ(reached, 5);
 }
 
 }  // namespace
