@@ -231,11 +231,12 @@ int RunTrain(int argc, char** argv) {
                  "Compact Adam moments (83 instead of 472 bytes per "
                  "Gaussian; not Inria's exact optimiser; overrides "
                  "--moment_precision)");
-  parser.Add("moment_precision", &a.moment_precision,
-             "Adam moments of all groups but positions: float32 (Inria's; "
-             "795 bytes of training state per Gaussian at SH degree 3) or "
-             "bfloat16 with stochastic rounding (571 bytes; see docs/benchmarks.md "
-             "for its quality)");
+  parser.Add(
+      "moment_precision", &a.moment_precision,
+      "Adam moments of all groups but positions: float32 (Inria's; "
+      "795 bytes of training state per Gaussian at SH degree 3) or "
+      "bfloat16 with stochastic rounding (571 bytes; see docs/benchmarks.md "
+      "for its quality)");
   if (!parser.Parse(argc, argv)) return 0;
   a.device = DeviceName(parser.device());
   Validate(a);

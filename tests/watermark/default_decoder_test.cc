@@ -1,8 +1,8 @@
 // The default decoder shipped in watermark/models/decoder_48.bin (a
-// random-feature decoder made by `watergs make_decoder`, docs/decoder_design.md):
-// it is small, reads 48 bits, is steerable on held-out photos
-// (tests/data/photos) at a small pixel change, finds no message in unmarked
-// crops of them, and a corrupted or truncated copy is refused.
+// random-feature decoder made by `watergs make_decoder`,
+// docs/decoder_design.md): it is small, reads 48 bits, is steerable on held-out
+// photos (tests/data/photos) at a small pixel change, finds no message in
+// unmarked crops of them, and a corrupted or truncated copy is refused.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -55,8 +55,8 @@ TEST(DefaultDecoderTest, SteerableAndBalancedOnHeldOutPhotos) {
   EXPECT_GT(balance.ones_fraction, 0.4);
   EXPECT_LT(balance.ones_fraction, 0.6);
   // (Bit correlations are not asserted here: 400 crops of 8 photos measure
-  // mostly which photo a crop came from; docs/decoder_design.md gives the corpus
-  // figure over 1,000 crops of 16 held-out photos.)
+  // mostly which photo a crop came from; docs/decoder_design.md gives the
+  // corpus figure over 1,000 crops of 16 held-out photos.)
 }
 
 TEST(DefaultDecoderTest, RefusesCorruptedAndTruncatedCopies) {
