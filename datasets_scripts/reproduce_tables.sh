@@ -266,6 +266,8 @@ embed_run() {
     for attack in gn:0.01 dropout:0.1 crop:0.1; do
       name="${attack%%:*}"
       if [ ! -f "$run_dir/attacked_$name.seconds" ]; then
+        # The attacked PLY is deleted once evaluated; an attack whose PLY is gone before that is redone.
+        [ -f "$run_dir/attacked_$name.ply" ] || rm -f "$run_dir/attack_$name.seconds"
         run_step "$run_dir/attack_$name.seconds" "$run_dir/attack_$name.log" "attack $attack $what" \
           "$bin" attack --input_path "$run_dir/watermarked.ply" --attack "$attack" --seed "$seed" \
           --output_path "$run_dir/attacked_$name.ply"
@@ -275,7 +277,8 @@ embed_run() {
         --workspace_path "$workspace" --downscale "$ds" --decoder "$decoder" --message "$message" \
         --attacks identity --image_attacks '' --lpips_weights "$lpips_used" --seed "$seed" \
         --num_threads "$num_threads" --output_path "$run_dir/attacked_$name"
-      rm -f "$run_dir/attacked_$name.ply"  # large; the evaluation above is what is kept
+      # Large; once evaluated, the evaluation is what is kept (a check pass deletes nothing else).
+      [ ! -f "$run_dir/attacked_$name.seconds" ] || rm -f "$run_dir/attacked_$name.ply"
     done
   fi
   [ "$steps_missing" -eq "$missing_before" ] || return 0  # unfinished: not in the tables

@@ -26,6 +26,10 @@ trap 'rm -rf "$work"' EXIT
 # --no-sandbox: Chromium refuses to run as root with its sandbox (CI
 # containers); the page is a local file. Scrollbars hidden so that the width
 # is the layout width in both loads.
+# file:// URL of a path, percent-encoded (spaces, '#', '?' in folder names).
+file_url() {
+  python3 -c 'import pathlib, sys; print(pathlib.Path(sys.argv[1]).resolve().as_uri())' "$1"
+}
 run_chromium() {
   timeout 60 "$chromium" --headless=new --no-sandbox --disable-gpu \
     --disable-dev-shm-usage --no-first-run --hide-scrollbars \
@@ -54,7 +58,7 @@ window.addEventListener('load', () => {
 </script>
 EOF
 run_chromium --window-size="$width,800" --dump-dom \
-  "file://$(realpath "$work/probe.html")" >"$work/dom.html" 2>"$work/probe.log"
+  "$(file_url "$work/probe.html")" >"$work/dom.html" 2>"$work/probe.log"
 probe="$(grep -o 'data-probe="[^"]*"' "$work/dom.html" | head -1 |
   sed -e 's/^data-probe="//' -e 's/"$//' -e 's/&quot;/"/g' -e 's/&amp;/\&/g')"
 if [ -z "$probe" ]; then
@@ -65,13 +69,17 @@ fi
 height="$(echo "$probe" | grep -o '"height":[0-9.]*' | head -1 | cut -d: -f2)"
 height="${height%.*}"
 run_chromium --window-size="$width,$height" --screenshot="$work/shot.png" \
-  "file://$(realpath "$page")" >"$work/shot.log" 2>&1
+  "$(file_url "$page")" >"$work/shot.log" 2>&1
 [ -s "$work/shot.png" ] || {
   echo "screenshot_report: $page: Chromium wrote no screenshot" >&2
   cat "$work/shot.log" >&2
   exit 1
 }
-cp "$work/shot.png" "$out"
-echo "$probe" >"$out.json"
-grep -h 'CONSOLE' "$work/probe.log" "$work/shot.log" >"$out.console.txt" || true
+# Each output appears whole or not at all: written beside its final name, then renamed.
+publish() { cp "$1" "$2.tmp.$$" && mv -f "$2.tmp.$$" "$2"; }
+echo "$probe" >"$work/probe.json"
+grep -h 'CONSOLE' "$work/probe.log" "$work/shot.log" >"$work/console.txt" || true
+publish "$work/probe.json" "$out.json"
+publish "$work/console.txt" "$out.console.txt"
+publish "$work/shot.png" "$out"
 echo "screenshot_report: wrote $out (${width}x$height)"

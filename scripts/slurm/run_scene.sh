@@ -71,6 +71,19 @@ if grep -q '"state": "done"' "$status_file" 2>/dev/null && grep -q "\"fingerprin
   exit 0
 fi
 
+# The step caches below were made with the options of the fingerprint in status.json: a scene started
+# with other options (message, iterations, ...) would end "done" from stale steps, so it is refused.
+previous=$(grep -o '"fingerprint": "[^"]*"' "$status_file" 2>/dev/null | head -1 | cut -d'"' -f4 || true)
+if [ -n "$previous" ] && [ "$previous" != "$fingerprint" ]; then
+  error="$dir holds steps made with other manifest options; give the scene another name= or delete the folder"
+  step_log "error: scene $name: $error"
+  # A done scene keeps its status (its outputs are valid for the options it was made with).
+  grep -q '"state": "done"' "$status_file" && exit "$EXIT_FAILED"
+  tool status --file "$status_file" --scene "$name" --state failed --step start --error "$error" \
+    --fingerprint "$previous"
+  exit "$EXIT_FAILED"
+fi
+
 current_step=start
 set_status() {  # STATE [ERROR]
   tool status --file "$status_file" --scene "$name" --state "$1" --step "$current_step" \

@@ -87,6 +87,8 @@ slurm_check_options "$device"
 command -v "$python" >/dev/null || die "$python not found (python3 runs the bookkeeping)"
 [ "$mode" = prepare ] || [ "$mode" = dry_run ] || [ -x "$bin" ] ||
   die "watergs binary '$bin' not found or not executable (build it, or pass --bin)"
+# Array tasks may start in another folder (--sbatch_args --chdir=...): the binary by its absolute path.
+[ ! -e "$bin" ] || bin="$(realpath "$bin")"
 tool() { "$python" "$script_dir/batch_tool.py" "$@"; }
 
 mkdir -p "$out"
@@ -121,10 +123,10 @@ finish() {  # prints the table; with --wait, exit 1 unless every scene is done
 
 case "$mode" in
   local)
-    failed=0
+    # One scene after another; a failed scene is in the table that finish prints.
     IFS=, read -r -a indices <<<"$pending"
     for i in "${indices[@]+"${indices[@]}"}"; do
-      "${task[@]}" --index "$i" --num_threads "${SLURM_CPUS_PER_TASK:-0}" || failed=$((failed + 1))
+      "${task[@]}" --index "$i" --num_threads "${SLURM_CPUS_PER_TASK:-0}" || true
     done
     "${aggregate[@]}" >/dev/null
     finish ;;

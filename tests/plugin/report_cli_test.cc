@@ -17,6 +17,7 @@
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
 #include "plugin/ownership_report.h"
+#include "plugin/report_evidence.h"
 #include "tests/plugin/rendered_workspace.h"
 #include "watermark/network_file.h"
 
@@ -330,7 +331,8 @@ PageCheck CheckInBrowser(const std::string& page, const std::string& png) {
   PageCheck check;
   const auto shot =
       RunCommand("bash " + std::string(WATERGS_SOURCE_DIR) +
-                 "/scripts/screenshot_report.sh " + page + " " + png + " 1100");
+                 "/scripts/screenshot_report.sh " + ShellQuote(page) + " " +
+                 ShellQuote(png) + " 1100");
   if (shot.exit_code == 2) {
     check.skipped = true;
     return check;

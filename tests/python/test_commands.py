@@ -79,17 +79,28 @@ def test_option_values_and_thread_count_restored(trained, tmp_path):
 
 def test_ctrl_c_stops_training(tmp_path):
     out = tmp_path / "run"
-    timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
+    stop = threading.Event()
+
+    def ctrl_c_once_training_started():
+        # A real SIGINT as soon as training has created its folder (not after
+        # a fixed time, which a fast machine could outrun). No progress
+        # callback runs, so only the C++ loop's own check can notice it.
+        while not stop.is_set():
+            if out.exists():
+                os.kill(os.getpid(), signal.SIGINT)
+                return
+            time.sleep(0.005)
+
+    watcher = threading.Thread(target=ctrl_c_once_training_started)
     start = time.monotonic()
-    timer.start()
+    watcher.start()
     try:
-        # Far more iterations than a second holds (a missed Ctrl-C costs a
-        # minute or two, not forever).
         with pytest.raises(KeyboardInterrupt):
             watergs.train(SCENE, out, downscale=DOWNSCALE, iterations=2000,
                           quiet=True)
     finally:
-        timer.cancel()
+        stop.set()
+        watcher.join()
     assert time.monotonic() - start < 20
     assert not out.exists()
 

@@ -6,7 +6,8 @@
 #      manifest options), the broken one failed at train with watergs's one-line error, reported by the
 #      aggregate job;
 #   2. the same submission again runs nothing: no job, no scene file touched;
-#   3. a scene interrupted during its evaluation resumes with only that step;
+#   3. a scene interrupted during its evaluation resumes with only that step, and one whose cached
+#      steps were made with other options is refused;
 #   4. datasets_scripts/reproduce_tables.sh --slurm submits through the same code (2 scenes, tiny
 #      settings): its tables cover both scenes, and the same command again submits nothing.
 # Exit 77 (CTest skip) only when the Slurm daemons cannot start here, with the reason; with
@@ -180,6 +181,18 @@ grep -q "^alpha,done," "$out/summary.csv" || fail "summary.csv: alpha not done a
 
 echo "== aggregate table"
 cat "$out/summary.md"
+
+echo "== 3b. a scene whose cached steps were made with other options is refused, not finished from them"
+"$python" "$repo/scripts/slurm/batch_tool.py" status --file "$out/scenes/alpha/status.json" --scene alpha \
+  --state interrupted --step embed --error "terminated by SIGTERM (test)" --fingerprint 0123abcd
+rc=0
+timeout 300 "${submit[@]}" >"$tmp/run3b.txt" 2>&1 || rc=$?
+cat "$tmp/run3b.txt"
+[ "$rc" -eq 1 ] || fail "submission with stale alpha: exit $rc, expected 1"
+grep -q '"state": "failed"' "$out/scenes/alpha/status.json" || fail "alpha with stale steps was not refused"
+grep -q 'other manifest options' "$out/scenes/alpha/status.json" || fail "alpha's refusal does not say why"
+grep -q '"fingerprint": "0123abcd"' "$out/scenes/alpha/status.json" ||
+  fail "the refusal replaced the fingerprint alpha's steps were made with"
 
 echo "== 4. reproduce_tables.sh --slurm (2 scenes: the demo under two names)"
 mkdir -p "$tmp/scenes"
