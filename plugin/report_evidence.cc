@@ -14,17 +14,6 @@
 namespace watergs {
 namespace {
 
-ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
-                       const RenderCamera& camera,
-                       const std::array<float, 3>& background) {
-  RenderOptions options;
-  options.background = background;
-  ImageRGB image;
-  rasterizer.Forward(model, camera, options, &image, nullptr);
-  for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
-  return image;
-}
-
 // At most kReportImageWidth wide; area averaging keeps the mean of what it
 // shrinks (a difference image keeps its brightness).
 ImageRGB Shrink(const ImageRGB& image) {

@@ -18,6 +18,12 @@
 
 namespace watergs {
 
+void BitDecoder::CheckLogitGradients(size_t count) const {
+  if (int(count) != NumBits())
+    Fail("decoder: " + std::to_string(count) + " logit gradients for a " +
+         std::to_string(NumBits()) + "-bit decoder");
+}
+
 void CachedTensorDecoder::ForwardIfNeeded(const ImageRGB& image) {
   const size_t count = image.data.size();
   if (image.width <= 0 || image.height <= 0 ||
@@ -44,10 +50,7 @@ std::vector<float> CachedTensorDecoder::Logits(const ImageRGB& image) {
 void CachedTensorDecoder::InputGradient(const ImageRGB& image,
                                         const std::vector<float>& dlogits,
                                         ImageRGB* dimage) {
-  if (int(dlogits.size()) != NumBits())
-    Fail("decoder: " + std::to_string(dlogits.size()) +
-         " logit gradients for a " + std::to_string(NumBits()) +
-         "-bit decoder");
+  CheckLogitGradients(dlogits.size());
   ForwardIfNeeded(image);
   dlogits_.Resize(1, NumBits(), 1, 1);
   std::copy(dlogits.begin(), dlogits.end(), dlogits_.data.begin());

@@ -30,6 +30,9 @@ class BitDecoder {
                              ImageRGB* dimage) = 0;
 
  protected:
+  // Fails (one line) unless `count` is NumBits(): InputGradient's check.
+  void CheckLogitGradients(size_t count) const;
+
   BitDecoder() = default;
   BitDecoder(const BitDecoder&) = default;
   BitDecoder(BitDecoder&&) = default;

@@ -16,17 +16,6 @@
 namespace watergs {
 namespace {
 
-ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
-                       const RenderCamera& camera,
-                       const std::array<float, 3>& background) {
-  RenderOptions options;
-  options.background = background;
-  ImageRGB image;
-  rasterizer.Forward(model, camera, options, &image, nullptr);
-  for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
-  return image;
-}
-
 // Metrics of `image` against `reference`; LPIPS from precomputed features.
 QualityMetrics Compare(const ImageRGB& image, const ImageRGB& reference,
                        const Lpips* lpips,
@@ -77,6 +66,17 @@ std::string Format(const char* format, double value) {
 }
 
 }  // namespace
+
+ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
+                       const RenderCamera& camera,
+                       const std::array<float, 3>& background) {
+  RenderOptions options;
+  options.background = background;
+  ImageRGB image;
+  rasterizer.Forward(model, camera, options, &image, nullptr);
+  for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+  return image;
+}
 
 std::vector<ModelAttackSpec> DefaultModelAttacks() {
   return ParseModelAttackList(kDefaultModelAttacks);

@@ -113,6 +113,12 @@ struct EvaluationReport {
   double seconds = 0;
 };
 
+// The render of `model` from `camera`, clamped to [0, 1] as images are
+// compared and decoded (also by the ownership report).
+ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
+                       const RenderCamera& camera,
+                       const std::array<float, 3>& background);
+
 // Evaluates on `eval_views` (indices into `views`). The raw and watermarked
 // models are rendered from the same cameras; a similarity attack moves the
 // cameras with the scene. `message` must have the decoder's length.

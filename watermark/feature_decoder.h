@@ -76,8 +76,7 @@ class FeatureNet {
   // Input of the last Forward (owned by the caller).
   const Tensor* image_ = nullptr;
   // Activations of the last Forward and gradient scratch.
-  Tensor pooled_, conv_out_, relu_, features_, logits_, dfeatures_, drelu_,
-      dpooled_;
+  Tensor pooled_, conv_out_, features_, logits_, dfeatures_, drelu_, dpooled_;
   std::vector<float> dcol_;
 };
 

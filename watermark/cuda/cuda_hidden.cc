@@ -288,10 +288,7 @@ void CudaDecoder::ForwardDevice(const float* image_hwc, int width, int height,
 void CudaDecoder::BackwardDevice(const std::vector<float>& dlogits,
                                  float* dimage_hwc, int pitch,
                                  bool accumulate) {
-  if (int(dlogits.size()) != NumBits())
-    Fail("decoder: " + std::to_string(dlogits.size()) +
-         " logit gradients for a " + std::to_string(NumBits()) +
-         "-bit decoder");
+  CheckLogitGradients(dlogits.size());
   dlogits_.Resize(1, NumBits(), 1, 1);
   dlogits_.data.Upload(dlogits);
   network_->Backward(dlogits_, &dinput_, false, false);
@@ -330,10 +327,7 @@ std::vector<float> CudaDecoder::Logits(const ImageRGB& image) {
 void CudaDecoder::InputGradient(const ImageRGB& image,
                                 const std::vector<float>& dlogits,
                                 ImageRGB* dimage) {
-  if (int(dlogits.size()) != NumBits())
-    Fail("decoder: " + std::to_string(dlogits.size()) +
-         " logit gradients for a " + std::to_string(NumBits()) +
-         "-bit decoder");
+  CheckLogitGradients(dlogits.size());
   ForwardIfNeeded(image);
   dimage_.Resize(image.data.size());
   BackwardDevice(dlogits, dimage_.data(), image.width, false);
