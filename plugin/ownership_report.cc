@@ -393,7 +393,14 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
     << "</td></tr>\n"
     << "<tr><th>Bit errors</th><td>" << claim.bit_errors << " of " << bits
     << " (bit error rate " << Printf("%.2f", 100 * claim.ber)
-    << "%)</td></tr>\n"
+    << "%, from the mean of all views' decoder outputs)</td></tr>\n"
+    << "<tr><th>One view alone</th><td>bit error rate mean "
+    << Printf("%.2f", 100 * claim.mean_view_ber) << "%, median "
+    << Printf("%.2f", 100 * claim.median_view_ber) << "%, 90th percentile "
+    << Printf("%.2f", 100 * claim.p90_view_ber) << "% over the "
+    << claim.views.size()
+    << " views, each decoded on its own (what a single screenshot of the "
+       "scene reads)</td></tr>\n"
     << "<tr><th>p-value</th><td><b>" << Scientific(claim.p_value)
     << "</b>: if this model carried no watermark, each bit would match the "
        "claimed message only by chance, like a coin toss; the chance of "
@@ -500,7 +507,8 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
        "suspect copies given.</p>\n<table id=\"attacks\"><tr><th>Model</th>"
        "<th>Attack</th><th class=\"num\">Gaussians</th><th>Bit error rate"
        "</th><th class=\"num\">Bits wrong</th><th class=\"num\">p-value</th>"
-       "<th>Verdict</th></tr>\n";
+       "<th>Verdict</th><th class=\"num\">One view: BER mean / p90</th>"
+       "</tr>\n";
   for (const RobustnessRow& row : ev.robustness) {
     const ExtractionResult& e = row.extraction;
     std::string model = row.model, attack = row.attack;
@@ -522,7 +530,9 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
       << "%</td><td class=\"num\">" << e.bit_errors << " / " << bits
       << "</td><td class=\"num\">" << Scientific(e.p_value)
       << "</td><td class=\"" << VerdictClass(e.verdict) << "\">"
-      << HtmlEscape(ToString(e.verdict)) << "</td></tr>\n";
+      << HtmlEscape(ToString(e.verdict)) << "</td><td class=\"num\">"
+      << Printf("%.1f", 100 * e.mean_view_ber) << "% / "
+      << Printf("%.1f", 100 * e.p90_view_ber) << "%</td></tr>\n";
   }
   h << "</table>\n";
 

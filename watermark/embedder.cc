@@ -77,13 +77,25 @@ double MessageBce(const std::vector<float>& logits,
 
 double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                       const PixelRect& crop, const std::vector<float>& targets,
-                      double gamma, ImageRGB* grad_image, int* bit_errors) {
+                      double gamma, ImageRGB* grad_image, int* bit_errors,
+                      double margin) {
   ImageRGB cropped, grad;
   if (!crop.empty()) CropImage(image, crop, &cropped);
   const ImageRGB& decoded = crop.empty() ? image : cropped;
+  std::vector<float> logits = decoder.Logits(decoded);
+  if (bit_errors) {
+    *bit_errors = 0;
+    for (size_t i = 0; i < logits.size() && i < targets.size(); ++i) {
+      *bit_errors += (logits[i] > 0) != (targets[i] > 0.5f);
+    }
+  }
+  if (margin > 0 && logits.size() == targets.size()) {
+    for (size_t i = 0; i < logits.size(); ++i) {
+      logits[i] -= float(margin) * (targets[i] > 0.5f ? 1.f : -1.f);
+    }
+  }
   std::vector<float> dlogits;
-  const double bce =
-      MessageBce(decoder.Logits(decoded), targets, gamma, &dlogits, bit_errors);
+  const double bce = MessageBce(logits, targets, gamma, &dlogits, nullptr);
   decoder.InputGradient(decoded, dlogits, &grad);
   AddPatch(grad,
            crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop,
@@ -195,7 +207,16 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   }
   if (!(options_.free_view_fraction >= 0 && options_.free_view_fraction <= 1))
     Fail("embed: free_view_fraction must be in [0, 1]");
-  if (options_.free_view_fraction > 0) input_model_ = model_;
+  if (options_.free_view_fraction > 0 || options_.fidelity_to_input) {
+    input_model_ = model_;
+  }
+  if (!(options_.mse_weight >= 0)) Fail("embed: mse_weight must be >= 0");
+  if (options_.free_view_neighbors < 0) {
+    Fail("embed: free_view_neighbors must be >= 0");
+  }
+  if (!(options_.margin >= 0)) Fail("embed: margin must be >= 0");
+  CheckDecoderJitter(options_.decoder_jitter);
+  if (options_.free_view_neighbors > 0) FindNeighbors();
   targets_.assign(message_.begin(), message_.end());
   if (!options_.distortions.empty()) {
     sampler_ = std::make_unique<DistortionSampler>(options_.distortions);
@@ -232,8 +253,10 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   // host step (the rasterizer and decoder still run on the GPU).
   auto* cuda_rasterizer = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
   auto* cuda_decoder = dynamic_cast<CudaDecoder*>(decoder_);
+  // Decoder jitter and the margin run on the host step only.
   if (cuda_rasterizer && cuda_decoder && !options_.adam.compact_moments &&
-      !options_.adam.half_moments) {
+      !options_.adam.half_moments && !options_.decoder_jitter.enabled() &&
+      options_.margin == 0 && options_.mse_weight == 0) {
     UseDeviceStep([&](GaussianModel* host_model, Adam* host_adam) {
       return std::make_unique<CudaEmbeddingStep>(
           cuda_rasterizer, cuda_decoder, options_.adam, scene_extent_,
@@ -274,6 +297,16 @@ std::string Embedder::RunSignature() const {
   j["crop_size"] = options_.crop_size;
   if (options_.free_view_fraction > 0)
     j["free_view_fraction"] = options_.free_view_fraction;
+  if (options_.free_view_neighbors > 0)
+    j["free_view_neighbors"] = options_.free_view_neighbors;
+  if (options_.decoder_jitter.enabled()) {
+    const DecoderJitterOptions& jitter = options_.decoder_jitter;
+    j["decoder_jitter"] = {jitter.max_shift, jitter.min_scale,
+                           jitter.max_scale};
+  }
+  if (options_.margin > 0) j["margin"] = options_.margin;
+  if (options_.fidelity_to_input) j["fidelity_to_input"] = true;
+  if (options_.mse_weight > 0) j["mse_weight"] = options_.mse_weight;
   j["densify"] = options_.densify;
   j["message"] = BitsToString(message_);
   j["train_views"] = train_views_.size();
@@ -284,8 +317,67 @@ size_t Embedder::NextView() {
   return train_views_[rng_() % train_views_.size()];
 }
 
+void Embedder::FindNeighbors() {
+  neighbors_.assign(views_.NumViews(), {});
+  for (size_t v : train_views_) {
+    const Eigen::Vector3d centre = views_.Camera(v).Center();
+    std::vector<std::pair<double, size_t>> by_distance;
+    for (size_t u : train_views_) {
+      if (u == v) continue;
+      by_distance.emplace_back((views_.Camera(u).Center() - centre).norm(), u);
+    }
+    const size_t k = std::min<size_t>(options_.free_view_neighbors,
+                                      by_distance.size());
+    std::partial_sort(by_distance.begin(), by_distance.begin() + k,
+                      by_distance.end());
+    for (size_t i = 0; i < k; ++i) {
+      neighbors_[v].push_back(by_distance[i].second);
+    }
+  }
+}
+
+std::shared_ptr<const ImageRGB> Embedder::InputRender(size_t view) {
+  if (input_renders_.empty()) input_renders_.resize(views_.NumViews());
+  if (!input_renders_[view]) {
+    RenderOptions options;
+    options.background = options_.background;
+    auto target = std::make_shared<ImageRGB>();
+    rasterizer_->Forward(input_model_, views_.Camera(view), options,
+                         target.get(), nullptr);
+    for (float& v : target->data) v = std::clamp(v, 0.f, 1.f);
+    input_renders_[view] = std::move(target);
+  }
+  return input_renders_[view];
+}
+
+LossTerms Embedder::ImageLoss(const ImageRGB& rendered, const ImageRGB& truth,
+                              ImageRGB* grad) {
+  if (options_.mse_weight <= 0) return loss_.Evaluate(rendered, truth, grad);
+  CheckImageSize(rendered.width, rendered.height, truth);
+  LossTerms terms;
+  const size_t n = rendered.data.size();
+  grad->width = rendered.width;
+  grad->height = rendered.height;
+  grad->data.resize(n);
+  double sum_sq = 0, sum_abs = 0;
+  const float scale = float(2 * options_.mse_weight / double(n));
+  for (size_t i = 0; i < n; ++i) {
+    const float d = rendered.data[i] - truth.data[i];
+    sum_sq += double(d) * d;
+    sum_abs += std::abs(d);
+    grad->data[i] = scale * d;
+  }
+  terms.l1 = sum_abs / double(n);
+  terms.total = options_.mse_weight * sum_sq / double(n);
+  return terms;
+}
+
 void Embedder::PlanFreeView(IterationPlan* plan) {
-  const size_t other = NextView();
+  const std::vector<size_t>* near =
+      neighbors_.empty() ? nullptr : &neighbors_[plan->view];
+  const size_t other = near && !near->empty()
+                           ? (*near)[rng_() % near->size()]
+                           : NextView();
   const double t = std::uniform_real_distribution<double>(0, 1)(rng_);
   plan->camera = InterpolateCameras(plan->camera, views_.Camera(other), t);
   RenderOptions options;
@@ -326,6 +418,8 @@ EmbedStepStats Embedder::Step() {
       std::uniform_real_distribution<double>(0, 1)(rng_) <
           options_.free_view_fraction) {
     PlanFreeView(&plan);
+  } else if (options_.fidelity_to_input) {
+    plan.truth = InputRender(plan.view);
   } else {
     plan.truth = views_.Image(plan.view);
   }
@@ -337,6 +431,13 @@ EmbedStepStats Embedder::Step() {
   // The decoder reads the crop; a cropped render is all crop.
   if (plan.render_options.rect.empty() && options_.crop_size > 0) {
     plan.decoder_crop = plan.crop;
+  }
+  if (options_.decoder_jitter.enabled()) {
+    const int w = plan.decoder_crop.empty() ? plan.crop.width
+                                            : plan.decoder_crop.width;
+    const int h = plan.decoder_crop.empty() ? plan.crop.height
+                                            : plan.decoder_crop.height;
+    plan.jitter = SampleJitter(options_.decoder_jitter, w, h, &rng_);
   }
 
   const DensityEvent event = device_ ? DeviceIteration(it, plan, &stats)
@@ -383,13 +484,19 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   auto t2 = Clock::now();
   const bool cropped = !plan.render_options.rect.empty();
   if (cropped) CropImage(*plan.truth, plan.crop, &truth_crop_);
-  stats->image = loss_.Evaluate(render_, cropped ? truth_crop_ : *plan.truth,
-                                &grad_image_);
+  stats->image = ImageLoss(render_, cropped ? truth_crop_ : *plan.truth,
+                           &grad_image_);
   auto t3 = Clock::now();
 
   // Message term on the crop: BCE(m, D(crop)) and its image gradient.
-  stats->bce = AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
-                              options_.gamma, &grad_image_, &stats->bit_errors);
+  if (options_.decoder_jitter.enabled()) {
+    stats->bce = JitteredMessageLoss(plan, stats);
+  } else {
+    stats->bce =
+        AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
+                       options_.gamma, &grad_image_, &stats->bit_errors,
+                       options_.margin);
+  }
   stats->total = stats->image.total + options_.gamma * stats->bce;
   auto t4 = Clock::now();
   CheckLossFinite(it, plan, *stats);
@@ -425,6 +532,27 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   t.density = Seconds(t5, t6);
   t.adam = Seconds(t6, t7);
   return event;
+}
+
+double Embedder::JitteredMessageLoss(const IterationPlan& plan,
+                                     EmbedStepStats* stats) {
+  const PixelRect crop =
+      plan.decoder_crop.empty()
+          ? PixelRect{0, 0, render_.width, render_.height}
+          : plan.decoder_crop;
+  if (!plan.decoder_crop.empty()) {
+    CropImage(render_, crop, &truth_crop_);  // scratch: the decoder's region
+  }
+  const ImageRGB& region = plan.decoder_crop.empty() ? render_ : truth_crop_;
+  JitterForward(region, plan.jitter, &jittered_);
+  grad_jittered_ = ImageRGB(jittered_.width, jittered_.height);
+  const double bce = AddMessageLoss(*decoder_, jittered_, PixelRect{}, targets_,
+                                    options_.gamma, &grad_jittered_,
+                                    &stats->bit_errors, options_.margin);
+  ImageRGB grad_region(region.width, region.height);
+  JitterAdjoint(grad_jittered_, plan.jitter, &grad_region);
+  AddPatch(grad_region, crop, 1.f, &grad_image_);
+  return bce;
 }
 
 DensityEvent Embedder::DeviceIteration(int64_t it, const IterationPlan& plan,
@@ -463,31 +591,51 @@ const GaussianModel& Embedder::model() const {
   return model_;
 }
 
-CheckResult Embedder::Check(const std::vector<size_t>& views) {
-  CheckResult result;
-  if (views.empty()) return result;
+double Embedder::DecodeViews(
+    const std::vector<RenderCamera>& cameras,
+    const std::vector<std::shared_ptr<const ImageRGB>>* truths,
+    std::vector<double>* sum_logits, double* psnr) {
   RenderOptions render_options;
   render_options.background = options_.background;
-  std::vector<double> mean_logits(message_.size(), 0.0);
+  double mean_ber = 0;
   ImageRGB image;
-  for (size_t view : views) {
+  for (size_t k = 0; k < cameras.size(); ++k) {
     // The device path renders its resident model (no model download).
     if (device_) {
-      device_->Render(views_.Camera(view), render_options, &image);
+      device_->Render(cameras[k], render_options, &image);
     } else {
-      rasterizer_->Forward(model_, views_.Camera(view), render_options, &image,
+      rasterizer_->Forward(model_, cameras[k], render_options, &image,
                            nullptr);
     }
     for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
     const std::vector<float> logits = decoder_->Logits(image);
-    result.mean_ber += double(CountBitErrors(logits, message_)) /
-                       message_.size() / views.size();
-    for (size_t i = 0; i < logits.size(); ++i) mean_logits[i] += logits[i];
-    result.psnr += Psnr(image, *views_.Image(view)) / views.size();
+    mean_ber += double(CountBitErrors(logits, message_)) / message_.size() /
+                cameras.size();
+    if (sum_logits) {
+      for (size_t i = 0; i < logits.size(); ++i) (*sum_logits)[i] += logits[i];
+    }
+    if (truths) *psnr += Psnr(image, *(*truths)[k]) / cameras.size();
   }
-  std::vector<float> aggregate(mean_logits.begin(), mean_logits.end());
-  result.aggregate_ber =
-      double(CountBitErrors(aggregate, message_)) / message_.size();
+  return mean_ber;
+}
+
+CheckResult Embedder::Check(const std::vector<size_t>& views) {
+  CheckResult result;
+  if (!views.empty()) {
+    std::vector<RenderCamera> cameras;
+    std::vector<std::shared_ptr<const ImageRGB>> truths;
+    for (size_t view : views) {
+      cameras.push_back(views_.Camera(view));
+      truths.push_back(views_.Image(view));
+    }
+    std::vector<double> mean_logits(message_.size(), 0.0);
+    result.mean_ber = DecodeViews(cameras, &truths, &mean_logits, &result.psnr);
+    std::vector<float> aggregate(mean_logits.begin(), mean_logits.end());
+    result.aggregate_ber =
+        double(CountBitErrors(aggregate, message_)) / message_.size();
+  }
+  result.free_mean_ber =
+      DecodeViews(options_.check_free_views, nullptr, nullptr, nullptr);
   return result;
 }
 
@@ -509,7 +657,10 @@ bool Embedder::Run() {
         !options_.check_views.empty()) {
       last_check = Check(options_.check_views);
       checked = true;
-      zero_ber_checks_ = last_check.mean_ber == 0 ? zero_ber_checks_ + 1 : 0;
+      zero_ber_checks_ =
+          last_check.mean_ber == 0 && last_check.free_mean_ber == 0
+              ? zero_ber_checks_ + 1
+              : 0;
     }
     if (options_.checkpoint_every > 0 && it % options_.checkpoint_every == 0 &&
         !options_.checkpoint_path.empty()) {
@@ -524,6 +675,11 @@ bool Embedder::Run() {
       if (checked) {
         std::snprintf(status, sizeof(status), "  check BER %.1f%% PSNR %.2f",
                       100 * last_check.mean_ber, last_check.psnr);
+        if (!options_.check_free_views.empty()) {
+          line += status;
+          std::snprintf(status, sizeof(status), " free %.1f%%",
+                        100 * last_check.free_mean_ber);
+        }
         line += status;
       }
       bar->Update(it, line);

@@ -25,6 +25,7 @@
 #include "watermark/decoder.h"
 #include "watermark/device_embedding_step.h"
 #include "watermark/message.h"
+#include "watermark/view_jitter.h"
 
 namespace watergs {
 
@@ -56,6 +57,24 @@ struct EmbedOptions {
   // model's render there as the image target: the message then holds in
   // views no training camera saw, at the input model's fidelity there.
   double free_view_fraction = 0;
+  // Free viewpoints interpolate towards one of the view's this many nearest
+  // training cameras (by centre); 0: towards any training camera. Near
+  // neighbours sample the capture path, where held-out photos lie.
+  int free_view_neighbors = 0;
+  // The decoder reads each render through a random shift and zoom (see
+  // view_jitter.h); off by default.
+  DecoderJitterOptions decoder_jitter;
+  // The message term pushes each logit past +-margin (BCE on the logit
+  // moved by the margin towards the wrong side): a view whose logits sit
+  // far from 0 keeps its bits in the next, unseen view.
+  double margin = 0;
+  // The image term's target on training cameras: the input model's render
+  // there instead of the photo (free viewpoints always use the render), so
+  // fine-tuning spends its changes on the message, not on refitting photos.
+  bool fidelity_to_input = false;
+  // > 0: the image term is mse_weight * mean squared error (PSNR's own
+  // measure) instead of (1 - beta) L1 + beta D-SSIM.
+  double mse_weight = 0;
   // BER over the check views is evaluated every check_every iterations;
   // fine-tuning stops after `patience` consecutive checks at BER 0 (0 = never
   // stop early).
@@ -63,6 +82,9 @@ struct EmbedOptions {
   int patience = 2;
   // Views (indices into the source) decoded at each check (whole frames).
   std::vector<size_t> check_views;
+  // Free viewpoints decoded at each check too (no ground truth): early
+  // stopping then waits for views no iteration rendered.
+  std::vector<RenderCamera> check_free_views;
   // Adaptive density control during fine-tuning (as in training). Needs
   // every group trainable: new Gaussians change every group, so the
   // constructor refuses it with a partial mask.
@@ -117,6 +139,8 @@ struct EmbedStepStats {
 struct CheckResult {
   // Mean over views of each view's bit error rate.
   double mean_ber = 0;
+  // The same over the free check viewpoints (0 without them).
+  double free_mean_ber = 0;
   // Bit error rate of the mean logits over the views.
   double aggregate_ber = 0;
   // Mean PSNR of the renders against ground truth.
@@ -142,7 +166,7 @@ class Embedder {
   // Steps until options.iterations or early stop; writes checkpoints and
   // progress. Returns true if it stopped early.
   bool Run();
-  // Decodes whole-frame renders of `views`.
+  // Decodes whole-frame renders of `views` and of the free check views.
   CheckResult Check(const std::vector<size_t>& views);
 
   // Restores a checkpoint written by a run with the same options.
@@ -172,13 +196,30 @@ class Embedder {
     PixelRect decoder_crop;
     // Null without distortion layers.
     const DistortionLayer* layer = nullptr;
+    // Applied to the (cropped) render before decoding, if jitter is on.
+    JitterSample jitter;
   };
 
   std::string RunSignature() const;
+  // Mean per-view BER of whole-frame renders from `cameras`; adds each
+  // render's PSNR against truths[k] / n into *psnr where truths is given.
+  double DecodeViews(const std::vector<RenderCamera>& cameras,
+                     const std::vector<std::shared_ptr<const ImageRGB>>* truths,
+                     std::vector<double>* sum_logits, double* psnr);
   size_t NextView();
   // A free viewpoint between two training cameras and the input model's
   // render there (the image target).
   void PlanFreeView(IterationPlan* plan);
+  // The input model's render from a training view (cached).
+  std::shared_ptr<const ImageRGB> InputRender(size_t view);
+  // The image term of the options on `rendered` against `truth`.
+  LossTerms ImageLoss(const ImageRGB& rendered, const ImageRGB& truth,
+                      ImageRGB* grad);
+  // Fills neighbors_ (free_view_neighbors > 0).
+  void FindNeighbors();
+  // The message term through the plan's jitter: adds its image gradient
+  // into grad_image_ and returns the BCE.
+  double JitteredMessageLoss(const IterationPlan& plan, EmbedStepStats* stats);
   PixelRect SampleRect(int width, int height);
   // The iteration's loss, backward, density control and Adam on the host
   // model, or on the device-resident one.
@@ -195,9 +236,12 @@ class Embedder {
   EmbedOptions options_;
   const TrainingViews& views_;
   std::vector<size_t> train_views_;
+  // Per source view, its free_view_neighbors nearest training views.
+  std::vector<std::vector<size_t>> neighbors_;
   GaussianModel model_;
   // The input model, kept when free-view iterations render targets from it.
   GaussianModel input_model_;
+  std::vector<std::shared_ptr<const ImageRGB>> input_renders_;
   double scene_extent_;
   BitDecoder* decoder_;
   Bits message_;
@@ -217,7 +261,7 @@ class Embedder {
   // Reused per-iteration buffers.
   GaussianModel distorted_;
   std::vector<uint32_t> source_;
-  ImageRGB render_, truth_crop_, grad_image_;
+  ImageRGB render_, truth_crop_, grad_image_, jittered_, grad_jittered_;
   GaussianGradients grads_, distorted_grads_;
   std::vector<float> radii_;
   // The device-resident step (null: iterations run on the host model), and
@@ -245,9 +289,11 @@ double MessageBce(const std::vector<float>& logits,
 // in image pixels, empty = all of it) and adds gamma * d BCE / d image into
 // grad_image (image's shape); bit_errors (if not null) gets the errors of
 // the decoded bits.
+// margin > 0 moves each logit by margin towards the wrong side first.
 double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                       const PixelRect& crop, const std::vector<float>& targets,
-                      double gamma, ImageRGB* grad_image, int* bit_errors);
+                      double gamma, ImageRGB* grad_image, int* bit_errors,
+                      double margin = 0);
 
 // gamma * BCE(targets, D(render(model)[crop])) and its gradient w.r.t. the
 // model, the render taken over options.rect (as Step does); for checks.

@@ -238,8 +238,10 @@ std::string EvaluationToJson(const EvaluationReport& r) {
                     {"ber", e.ber},
                     {"bit_errors", e.bit_errors},
                     {"view_ber",
-                     {{"min", e.min_view_ber},
+                     {{"mean", e.mean_view_ber},
                       {"median", e.median_view_ber},
+                      {"p90", e.p90_view_ber},
+                      {"min", e.min_view_ber},
                       {"max", e.max_view_ber}}},
                     {"p_value", e.p_value},
                     {"verdict", ToString(e.verdict)},
@@ -275,15 +277,17 @@ std::string EvaluationToMarkdown(const EvaluationReport& r) {
   out << "\n## Watermark (" << r.message.size()
       << " bits; present at p <= " << Format("%.0e", r.thresholds.present_p)
       << ")\n\n"
-      << "| Model | Attack | Kind | Gaussians | BER (%) | Bit errors | "
-         "p-value | Verdict |\n"
-      << "|---|---|---|---:|---:|---:|---:|---|\n";
+      << "| Model | Attack | Kind | Gaussians | Aggregated BER (%) | Bit errors | "
+         "p-value | Verdict | Single view BER mean / median / p90 (%) |\n"
+      << "|---|---|---|---:|---:|---:|---:|---|---:|\n";
   for (const RobustnessRow& row : r.robustness) {
     const ExtractionResult& e = row.extraction;
     out << "| " << row.model << " | " << row.attack << " | " << row.kind
         << " | " << row.num_gaussians << " | " << Format("%.2f", 100 * e.ber)
         << " | " << e.bit_errors << " | " << Format("%.3g", e.p_value) << " | "
-        << ToString(e.verdict) << " |\n";
+        << ToString(e.verdict) << " | " << Format("%.1f", 100 * e.mean_view_ber)
+        << " / " << Format("%.1f", 100 * e.median_view_ber) << " / "
+        << Format("%.1f", 100 * e.p90_view_ber) << " |\n";
   }
   return out.str();
 }

@@ -88,6 +88,8 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
     const size_t m = view_ber.size();
     result.median_view_ber =
         m % 2 ? view_ber[m / 2] : 0.5 * (view_ber[m / 2 - 1] + view_ber[m / 2]);
+    result.p90_view_ber = view_ber[(9 * m + 9) / 10 - 1];
+    for (double b : view_ber) result.mean_view_ber += b / m;
     result.p_value = BinomialTailPValue(num_bits - result.bit_errors, num_bits);
     result.verdict = Decide(result.p_value, thresholds);
   }
@@ -105,8 +107,10 @@ std::string ExtractionToJson(const ExtractionResult& r) {
     j["expected_bits"] = BitsToString(r.expected);
     j["bit_errors"] = r.bit_errors;
     j["ber"] = r.ber;
-    j["view_ber"] = {{"min", r.min_view_ber},
+    j["view_ber"] = {{"mean", r.mean_view_ber},
                      {"median", r.median_view_ber},
+                     {"p90", r.p90_view_ber},
+                     {"min", r.min_view_ber},
                      {"max", r.max_view_ber}};
     j["p_value"] = r.p_value;
     j["verdict"] = ToString(r.verdict);
@@ -117,6 +121,7 @@ std::string ExtractionToJson(const ExtractionResult& r) {
   for (const ViewDecode& v : r.views) {
     nlohmann::json e = {{"name", v.name}};
     if (v.bit_errors >= 0) e["bit_errors"] = v.bit_errors;
+    e["logits"] = v.logits;
     views.push_back(e);
   }
   j["views"] = views;

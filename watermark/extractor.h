@@ -43,8 +43,10 @@ struct ExtractionResult {
   Bits expected;
   int bit_errors = 0;
   double ber = 0;
-  // Spread of per-view BER.
+  // Single views: the distribution of each view's own BER (what one
+  // screenshot reads), next to the aggregate above. p90: nearest rank.
   double min_view_ber = 0, median_view_ber = 0, max_view_ber = 0;
+  double mean_view_ber = 0, p90_view_ber = 0;
   // P[at least this many matching bits | unmarked model].
   double p_value = 1;
   Verdict verdict = Verdict::kInconclusive;

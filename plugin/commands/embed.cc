@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -18,6 +20,7 @@
 #include "gaussian/loss.h"
 #include "gaussian/ply_io.h"
 #include "gaussian/progress.h"
+#include "gaussian/text_util.h"
 #include "plugin/command.h"
 #include "plugin/embed_inputs.h"
 #include "plugin/option_parser.h"
@@ -28,6 +31,7 @@
 #include "watermark/bit_decoder.h"
 #include "watermark/embedder.h"
 #include "watermark/evaluation.h"
+#include "watermark/extractor.h"
 #include "watermark/message.h"
 
 namespace watergs {
@@ -45,6 +49,12 @@ struct EmbedArgs {
   int crop_size = 128;
   bool full_frame_loss = false;
   double free_view_fraction = 0;
+  int free_view_neighbors = 0;
+  std::string decoder_jitter = "none";
+  double margin = 0;
+  std::string fidelity = "photos";
+  double mse_weight = 0;
+  int check_free_views = 0;
   int patience = 2;
   int check_views = 4;
   int64_t check_every = 200;
@@ -58,6 +68,32 @@ struct EmbedArgs {
   // Hold out every 8th view, as train --eval, so eval scores unseen views.
   bool eval = false;
 };
+
+// "none" or "SHIFT,MIN_SCALE,MAX_SCALE".
+DecoderJitterOptions ParseDecoderJitter(const std::string& text) {
+  DecoderJitterOptions jitter;
+  if (text == "none") return jitter;
+  std::vector<double> values;
+  std::stringstream in(text);
+  for (std::string part; std::getline(in, part, ',');) {
+    const std::optional<double> v = ParseFiniteDouble(part);
+    if (!v) break;
+    values.push_back(*v);
+  }
+  if (values.size() != 3) {
+    Fail("--decoder_jitter: '" + Printable(text) +
+         "' is not none or SHIFT,MIN_SCALE,MAX_SCALE");
+  }
+  jitter.max_shift = values[0];
+  jitter.min_scale = values[1];
+  jitter.max_scale = values[2];
+  try {
+    CheckDecoderJitter(jitter);
+  } catch (const Error& e) {
+    Fail(std::string("--decoder_jitter: ") + e.what());
+  }
+  return jitter;
+}
 
 void Validate(const EmbedArgs& a) {
   if (SamePath(a.input_path, a.output_path)) {
@@ -213,6 +249,24 @@ int RunEmbed(int argc, char** argv) {
              "Fraction of iterations rendered between two training cameras, "
              "with the input model's render as the image target (the message "
              "then holds in novel views)");
+  parser.Add("free_view_neighbors", &a.free_view_neighbors,
+             "Free viewpoints lie between a camera and one of its this many "
+             "nearest training cameras (0 = any training camera)");
+  parser.Add("decoder_jitter", &a.decoder_jitter,
+             "SHIFT,MIN_SCALE,MAX_SCALE: the decoder reads each render "
+             "shifted by up to SHIFT pixels and resized by a factor in "
+             "[MIN_SCALE, MAX_SCALE], or none");
+  parser.Add("margin", &a.margin,
+             "Push every logit at least this far past 0 (0 = plain BCE)");
+  parser.Add("fidelity", &a.fidelity,
+             "Image target on training cameras: photos, or input (the input "
+             "model's render: changes go to the message only)");
+  parser.Add("mse_weight", &a.mse_weight,
+             "> 0: image loss = this x MSE (PSNR's measure) instead of L1 + "
+             "D-SSIM");
+  parser.Add("check_free_views", &a.check_free_views,
+             "Free viewpoints decoded at each check too (early stopping "
+             "waits for them)");
   parser.Add("patience", &a.patience,
              "Stop after this many checks at BER 0 (0 = never)");
   parser.Add("check_views", &a.check_views, "Views decoded at each check");
@@ -251,6 +305,14 @@ int RunEmbed(int argc, char** argv) {
   options.crop_size = a.crop_size;
   options.full_frame_image_loss = a.full_frame_loss;
   options.free_view_fraction = a.free_view_fraction;
+  options.free_view_neighbors = a.free_view_neighbors;
+  options.decoder_jitter = ParseDecoderJitter(a.decoder_jitter);
+  options.margin = a.margin;
+  if (a.fidelity != "photos" && a.fidelity != "input") {
+    Fail("--fidelity: photos or input");
+  }
+  options.fidelity_to_input = a.fidelity == "input";
+  options.mse_weight = a.mse_weight;
   options.patience = a.patience;
   options.check_every = a.check_every;
   const bool all_trainable =
@@ -277,6 +339,18 @@ int RunEmbed(int argc, char** argv) {
   const WorkspaceViews& views = *in.views;
   const std::vector<size_t>& train_views = in.train_views;
   options.check_views = SpreadViews(train_views, a.check_views);
+  if (a.check_free_views > 0) {
+    // Between two training cameras, as extract --num_views samples them;
+    // a seed of its own, so they are not the free-view iterations' cameras.
+    std::mt19937_64 rng(uint64_t(a.seed) + 7919);
+    for (int k = 0; k < a.check_free_views; ++k) {
+      const size_t u = train_views[rng() % train_views.size()];
+      const size_t v = train_views[rng() % train_views.size()];
+      options.check_free_views.push_back(InterpolateCameras(
+          views.Camera(u), views.Camera(v),
+          std::uniform_real_distribution<double>(0, 1)(rng)));
+    }
+  }
   const double extent = in.workspace->SceneExtent();
   const RenderCamera first = views.Camera(train_views.front());
   std::printf(

@@ -70,6 +70,7 @@ int RunExtract(int argc, char** argv) {
   WorkspaceOptions workspace_options;
   int num_views = 0;
   int max_views = 0;
+  std::string split = "all";
   int64_t seed = 0;
   int num_threads = 0;
   double present_p = VerificationThresholds().present_p;
@@ -98,6 +99,9 @@ int RunExtract(int argc, char** argv) {
   parser.Add(
       "max_views", &max_views,
       "Use at most this many workspace cameras, spread evenly (0 = all)");
+  parser.Add("split", &split,
+             "Workspace cameras to render: all, train or test (test: every "
+             "8th, the views train --eval and embed --eval hold out)");
   parser.Add("false_positive_rate", &present_p,
              "p-value at or below which the watermark is declared present");
   parser.Add("background", &background, "r,g,b, black or white");
@@ -112,6 +116,12 @@ int RunExtract(int argc, char** argv) {
              "Attack each render before decoding: jpeg:Q, resize:F, crop:F");
   if (!parser.Parse(argc, argv)) return 0;
   if (num_views < 0 || max_views < 0) Fail("--num_views must be >= 0");
+  if (split != "all" && split != "train" && split != "test") {
+    Fail("--split: all, train or test");
+  }
+  if (num_views > 0 && split != "all") {
+    Fail("--split selects workspace cameras; --num_views renders free ones");
+  }
   if (!(present_p > 0 && present_p < 0.01)) {
     Fail("--false_positive_rate must be in (0, 0.01)");
   }
@@ -133,11 +143,15 @@ int RunExtract(int argc, char** argv) {
   if (num_views > 0) {
     cameras = SampleFreeViewpoints(views, num_views, uint64_t(seed));
   } else {
-    const size_t n = views.NumViews();
+    const std::vector<size_t> pool = split == "test"
+                                         ? workspace.TestViews(true)
+                                         : workspace.TrainViews(split == "train");
+    if (pool.empty()) Fail("extract: --split " + split + " selects no camera");
+    const size_t n = pool.size();
     const size_t count = max_views > 0 ? std::min<size_t>(max_views, n) : n;
     for (size_t k = 0; k < count; ++k) {
-      cameras.push_back(views.Camera(k * n / count));
-      names.push_back(views.Name(k * n / count));
+      cameras.push_back(views.Camera(pool[k * n / count]));
+      names.push_back(views.Name(pool[k * n / count]));
     }
   }
   if (!scene_transform.empty()) {
@@ -170,10 +184,14 @@ int RunExtract(int argc, char** argv) {
     std::printf("extract: expected bits         %s\n",
                 BitsToString(r.expected).c_str());
     std::printf(
-        "extract: BER %.2f%% (%d of %zu bits), per view min %.2f%% median "
-        "%.2f%% max %.2f%%\n",
-        100 * r.ber, r.bit_errors, r.recovered.size(), 100 * r.min_view_ber,
-        100 * r.median_view_ber, 100 * r.max_view_ber);
+        "extract: single views (%zu): BER mean %.2f%% median %.2f%% p90 "
+        "%.2f%% (min %.2f%%, max %.2f%%)\n",
+        r.views.size(), 100 * r.mean_view_ber, 100 * r.median_view_ber,
+        100 * r.p90_view_ber, 100 * r.min_view_ber, 100 * r.max_view_ber);
+    std::printf(
+        "extract: aggregated over the %zu views (mean logits): BER %.2f%% (%d "
+        "of %zu bits)\n",
+        r.views.size(), 100 * r.ber, r.bit_errors, r.recovered.size());
     std::printf(
         "extract: p-value %.3g (chance of this many matching bits from an "
         "unmarked model)\n",
