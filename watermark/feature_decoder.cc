@@ -184,6 +184,17 @@ const Tensor& FeatureNet::Forward(const Tensor& image) {
   return logits_;
 }
 
+void FeatureNet::FeatureBackward(const Tensor& dfeatures, Tensor* dimage) {
+  if (!image_ || image_->n != 1) {
+    Fail("feature decoder: FeatureBackward needs a single-image Forward");
+  }
+  ReluGlobalAvgPoolBackward(dfeatures, conv_out_, &drelu_);
+  ConvInputGradient(conv, drelu_, &dcol_,
+                    config_.pool > 1 ? &dpooled_ : dimage);
+  if (config_.pool > 1)
+    AvgPoolBackward(dpooled_, config_.pool, *image_, dimage);
+}
+
 void FeatureNet::Backward(const Tensor& dlogits, Tensor* dimage) {
   if (!image_) Fail("feature decoder: Backward before Forward");
   linear.Backward(features_, dlogits, &dfeatures_, false);

@@ -63,6 +63,9 @@ class FeatureNet {
   const Tensor& conv_output() const { return conv_out_; }
   // dlogits [N,L,1,1] -> dimage [N,3,H,W] of the last Forward's image.
   void Backward(const Tensor& dlogits, Tensor* dimage);
+  // dfeatures [1,C,1,1] -> dimage [1,3,H,W]: Backward from the pooled
+  // features (before the linear layer) of the last single-image Forward.
+  void FeatureBackward(const Tensor& dfeatures, Tensor* dimage);
 
   const FeatureDecoderConfig& config() const { return config_; }
   // Multiply-adds of one forward pass per input pixel.

@@ -75,6 +75,79 @@ MatrixXd RandomOrthogonalRows(int rows, int cols, std::mt19937* rng) {
   return q.leftCols(rows).transpose();
 }
 
+// C x k matrix with orthonormal columns spanning those of `m`.
+MatrixXd Orthonormalised(const MatrixXd& m) {
+  Eigen::HouseholderQR<MatrixXd> qr(m);
+  return qr.householderQ() * MatrixXd::Identity(m.rows(), m.cols());
+}
+
+// E_x[J_x J_x^T] v for each column v of `directions` (C x k), J_x the
+// Jacobian of the pooled features with respect to the input at crop x:
+// J^T v by the network's backward pass, J (J^T v) by a central difference
+// of the forward pass (ReLU's kinks average out over the crop's pixels).
+MatrixXd FeatureJacobianGram(const std::vector<ImageRGB>& crops,
+                             const MatrixXd& directions, FeatureNet* net) {
+  const int channels = int(directions.rows()), k = int(directions.cols());
+  MatrixXd out = MatrixXd::Zero(channels, k);
+  Tensor input, dfeatures, moved;
+  dfeatures.Resize(1, channels, 1, 1);
+  std::vector<Tensor> gradients(k);
+  for (const ImageRGB& crop : crops) {
+    ImageToTensor(crop, false, &input);
+    net->Forward(input);
+    for (int j = 0; j < k; ++j) {
+      for (int c = 0; c < channels; ++c)
+        dfeatures.data[c] = float(directions(c, j));
+      net->FeatureBackward(dfeatures, &gradients[j]);
+    }
+    for (int j = 0; j < k; ++j) {
+      const Tensor& g = gradients[j];
+      float largest = 0;
+      for (float v : g.data) largest = std::max(largest, std::abs(v));
+      if (largest == 0) continue;
+      const float h = 1e-3f / largest;
+      VectorXd difference(channels);
+      for (int sign : {1, -1}) {
+        moved = input;
+        for (size_t i = 0; i < moved.data.size(); ++i)
+          moved.data[i] += sign * h * g.data[i];
+        net->Forward(moved);
+        for (int c = 0; c < channels; ++c) {
+          const double f = net->features().data[c];
+          difference(c) = sign > 0 ? f : (difference(c) - f) / (2.0 * h);
+        }
+      }
+      out.col(j) += difference / double(crops.size());
+    }
+  }
+  return out;
+}
+
+// The k whitened feature directions (orthonormal columns, C x k) along which
+// the decoder's input gradient is largest on photo crops, largest first: the
+// top eigenvectors of W E[J J^T] W (W the whitening), by block subspace
+// iteration and a Rayleigh-Ritz step. Logits along them move most per unit
+// of pixel change while keeping unit variance on photos.
+MatrixXd SteerableSubspace(const std::vector<ImageRGB>& crops,
+                           const MatrixXd& whitening, int k, int rounds,
+                           FeatureNet* net, std::mt19937* rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  MatrixXd basis(whitening.rows(), k);
+  for (int i = 0; i < basis.rows(); ++i)
+    for (int j = 0; j < k; ++j) basis(i, j) = normal(*rng);
+  basis = Orthonormalised(basis);
+  MatrixXd product;
+  for (int round = 0; round <= rounds; ++round) {
+    product = whitening * FeatureJacobianGram(crops, whitening * basis, net);
+    if (round < rounds) basis = Orthonormalised(product);
+  }
+  const MatrixXd small = basis.transpose() * product;
+  Eigen::SelfAdjointEigenSolver<MatrixXd> eigen(0.5 *
+                                                (small + small.transpose()));
+  // Eigen sorts ascending: reverse the columns.
+  return basis * eigen.eigenvectors().rowwise().reverse();
+}
+
 }  // namespace
 
 std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
@@ -120,6 +193,11 @@ std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
          "-channel covariance (need more crops than channels)");
   if (options.crop < config.pool)
     Fail("make_decoder: crop smaller than the pooling");
+  if (options.steerable_subspace != 0 &&
+      (options.steerable_subspace < config.num_bits ||
+       options.steerable_subspace > config.channels))
+    Fail("make_decoder: the steerable subspace must hold between num_bits "
+         "and channels directions");
   auto net = std::make_unique<FeatureNet>(config, options.seed);
   StandardiseConvolution(
       SamplePhotoCrops(photos, options.crop, options.normalisation_crops,
@@ -143,9 +221,20 @@ std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
                              values.cwiseInverse().cwiseSqrt().asDiagonal() *
                              eigen.eigenvectors().transpose();
   std::mt19937 rng(options.seed + 3);
-  const MatrixXd projection =
-      options.logit_scale *
-      RandomOrthogonalRows(config.num_bits, config.channels, &rng) * whitening;
+  MatrixXd rows = RandomOrthogonalRows(config.num_bits, config.channels, &rng);
+  if (options.steerable_subspace > 0) {
+    // Random orthonormal rows inside the most steerable subspace instead of
+    // all of whitened space.
+    const int k = options.steerable_subspace;
+    std::mt19937 subspace_rng(options.seed + 4);
+    const MatrixXd subspace = SteerableSubspace(
+        SamplePhotoCrops(photos, options.crop, options.steering_crops,
+                         options.seed + 5),
+        whitening, k, 2, net.get(), &subspace_rng);
+    rows = RandomOrthogonalRows(config.num_bits, k, &rng) *
+           subspace.transpose();
+  }
+  const MatrixXd projection = options.logit_scale * rows * whitening;
   const VectorXd bias = -projection * mean;
   for (int o = 0; o < config.num_bits; ++o) {
     for (int c = 0; c < config.channels; ++c)

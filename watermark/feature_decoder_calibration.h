@@ -32,6 +32,13 @@ struct FeatureCalibrationOptions {
   double whiten_floor = 1e-5;
   // Standard deviation of each logit on the calibration crops.
   double logit_scale = 4.0;
+  // 0: the logits read random orthonormal directions of all of whitened
+  // feature space. K > 0: random orthonormal directions within the K
+  // whitened directions of largest input gradient on photo crops (the most
+  // steerable ones, found over steering_crops crops); still zero-mean,
+  // uncorrelated and of standard deviation logit_scale on photos.
+  int steerable_subspace = 0;
+  int steering_crops = 16;
   // Seeds the convolution, the crops and the projection.
   uint32_t seed = 0;
 };

@@ -91,6 +91,11 @@ int RunMakeDecoder(int argc, char** argv) {
              "crops for the features' mean and covariance");
   parser.Add("whiten_floor", &options.whiten_floor,
              "eigenvalue floor, relative to the mean eigenvalue");
+  parser.Add("steerable_subspace", &options.steerable_subspace,
+             "0: logits read random whitened directions; K: random "
+             "directions within the K most steerable ones");
+  parser.Add("steering_crops", &options.steering_crops,
+             "Photo crops the steerable directions are found on");
   parser.Add("logit_scale", &options.logit_scale,
              "logit standard deviation on the calibration crops");
   parser.Add("balance_crops", &balance_crops,

@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# The demo at a quarter of its resolution (120x90), as a test of the watermark itself with the
+# shipped decoder: train, embed with nothing but the required options (the defaults are the
+# product), attack the file, then read it back. Asserts per single view, not only in aggregate:
+#  - the raw model reads "absent" over all cameras (the control);
+#  - the watermarked file and its gn / dropout / crop copies read "present" over all cameras;
+#  - the 6 held-out cameras (unseen in training and embedding) read "present" together, and one
+#    held-out view alone reads at most MAX_MEAN_ERRORS of 48 bits wrong on average, at most
+#    MAX_P90_ERRORS at the 90th percentile;
+#  - embedding leaves the Gaussian count as it was (density control is off by default).
+# The bounds are the figures measured at this size (docs/history.md) with a few bits of slack.
+set -euo pipefail
+bin="${WATERGS_BIN:?WATERGS_BIN: the watergs CLI}"
+root="$(cd "$(dirname "$0")/../.." && pwd)"
+scene="$root/datasets_scripts/demo_scene"
+decoder="$root/watermark/models/decoder_48.bin"
+message="text:WGS-26"
+MAX_MEAN_ERRORS="${MAX_MEAN_ERRORS:-6}"   # of 48, mean over the held-out views
+MAX_P90_ERRORS="${MAX_P90_ERRORS:-10}"
+out="$(mktemp -d)"
+trap 'rm -rf "$out"' EXIT
+common=(--workspace_path "$scene" --downscale 4)
+fail() { echo "reduced_demo_test: FAIL: $*" >&2; exit 1; }
+
+"$bin" train "${common[@]}" --output_path "$out/train" --iterations 2000 \
+  --densify_until_iter 1000 --eval --test_iterations 2000 --num_threads 1 > "$out/train.log"
+raw="$out/train/point_cloud.ply"
+"$bin" embed --input_path "$raw" "${common[@]}" --decoder "$decoder" --message "$message" \
+  --output_path "$out/wm.ply" --eval --num_threads 1 > "$out/embed.log" 2>&1 || { cat "$out/embed.log"; fail "embed"; }
+count() { "$bin" ply_info --input_path "$1" | awk '/^Gaussians:/ {print $2}'; }
+[ "$(count "$raw")" = "$(count "$out/wm.ply")" ] || fail "embedding changed the Gaussian count"
+
+extract() {  # NAME PLY [extract options...]: writes $out/NAME.json, prints the verdict
+  local name=$1 ply=$2; shift 2
+  "$bin" extract --input_path "$ply" "${common[@]}" --decoder "$decoder" --message "$message" \
+    --num_threads 1 --json "$out/$name.json" "$@" > "$out/$name.txt"
+  python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["verdict"])' "$out/$name.json"
+}
+[ "$(extract raw "$raw")" = "watermark absent" ] || fail "raw model not 'absent': $(cat "$out/raw.txt")"
+for attack in identity gn:0.01 dropout:0.1 crop:0.1; do
+  ply="$out/wm.ply"
+  if [ "$attack" != identity ]; then
+    ply="$out/wm_${attack%%:*}.ply"
+    "$bin" attack --input_path "$out/wm.ply" --attack "$attack" --output_path "$ply" > /dev/null
+  fi
+  v=$(extract "wm_${attack%%:*}" "$ply")
+  [ "$v" = "watermark present" ] || fail "$attack: '$v' over all cameras"
+done
+v=$(extract held "$out/wm.ply" --split test)
+[ "$v" = "watermark present" ] || fail "held-out views together: '$v'"
+python3 - "$out/held.json" "$MAX_MEAN_ERRORS" "$MAX_P90_ERRORS" <<'PY'
+import json, sys
+j = json.load(open(sys.argv[1]))
+errors = sorted(v["bit_errors"] for v in j["views"])
+mean = sum(errors) / len(errors)
+p90 = errors[(9 * len(errors) + 9) // 10 - 1]
+print(f"held-out single views: bit errors {errors}, mean {mean:.2f}, p90 {p90} of {j['num_bits']}")
+assert len(errors) == 6, f"{len(errors)} held-out views, expected 6"
+assert mean <= float(sys.argv[2]), f"mean {mean:.2f} bit errors per held-out view > {sys.argv[2]}"
+assert p90 <= int(sys.argv[3]), f"p90 {p90} bit errors per held-out view > {sys.argv[3]}"
+PY
+echo "reduced_demo_test: passed"
