@@ -157,8 +157,8 @@ void HostWorkPerStep(int repeats) {
   using namespace watergs;
   const int batch = 16, crop = 256;
   std::mt19937 rng(5);
-  cv::Mat photo(384, 614, CV_8UC3);
-  cv::randu(photo, cv::Scalar::all(0), cv::Scalar::all(255));
+  cv::Mat photo(384, 614, CV_32FC3);
+  cv::randu(photo, cv::Scalar::all(0), cv::Scalar::all(1));
   Tensor cover(batch, 3, crop, crop), watermarked, noised, dimage;
   const double assembly = MedianSeconds(repeats, [&] {
     for (int b = 0; b < batch; ++b)

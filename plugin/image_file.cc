@@ -1,12 +1,12 @@
-// Image file decoding and writing (see image_file.h).
+// Image file writing (see image_file.h).
 #include "plugin/image_file.h"
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <vector>
 
 #include "gaussian/error.h"
@@ -14,35 +14,8 @@
 
 namespace watergs {
 
-cv::Mat DecodeImageFile(const std::string& path) {
-  const cv::Mat raw = cv::imread(path, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH |
-                                           cv::IMREAD_IGNORE_ORIENTATION);
-  if (raw.empty()) FailAt(path, "cannot read or decode image");
-  const double scale = raw.depth() == CV_16U  ? 1.0 / 65535
-                       : raw.depth() == CV_8U ? 1.0 / 255
-                                              : 1.0;
-  cv::Mat rgb;
-  raw.convertTo(rgb, CV_32FC3, scale);
-  cv::cvtColor(rgb, rgb, cv::COLOR_BGR2RGB);
-  return rgb;
-}
-
-ImageRGB ToImageRGB(const cv::Mat& rgb) {
-  ImageRGB image(rgb.cols, rgb.rows);
-  for (int row = 0; row < rgb.rows; ++row) {
-    const float* source = rgb.ptr<float>(row);
-    std::copy(source, source + 3 * rgb.cols, image.At(0, row));
-  }
-  for (float& value : image.data) value = std::clamp(value, 0.f, 1.f);
-  return image;
-}
-
-ImageRGB ReadImageFile(const std::string& path) {
-  return ToImageRGB(DecodeImageFile(path));
-}
-
 void WriteImageFile(const std::string& path, const ImageRGB& image,
-                    std::string format) {
+                    std::string format, int jpeg_quality) {
   std::string ext = format.empty()
                         ? std::filesystem::path(path).extension().string()
                         : format;
@@ -50,7 +23,11 @@ void WriteImageFile(const std::string& path, const ImageRGB& image,
                  [](unsigned char c) { return std::tolower(c); });
   std::vector<int> params;
   if (ext == ".jpg" || ext == ".jpeg") {
-    params = {cv::IMWRITE_JPEG_QUALITY, 100};
+    if (jpeg_quality < 1 || jpeg_quality > 100) {
+      FailAt(path, "JPEG quality " + std::to_string(jpeg_quality) +
+                       " is not in 1..100");
+    }
+    params = {cv::IMWRITE_JPEG_QUALITY, jpeg_quality};
   } else if (ext != ".png") {
     FailAt(path, "cannot write images of type '" + ext + "' (png, jpg)");
   }

@@ -6,13 +6,12 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <string>
 
 #include "gaussian/error.h"
 #include "gaussian/progress.h"
+#include "watermark/image_reading.h"
 
 #ifdef WATERGS_WITH_CUDA
 #include "gaussian/cuda/cuda_device.h"
@@ -198,37 +197,25 @@ float NextPsnrTarget(const DecoderTrainingOptions& options, int64_t step,
 }
 
 void PhotoToTensor(const cv::Mat& photo, int x0, int y0, int b, Tensor* batch) {
-  const size_t hw = batch->PlaneSize();
+  if (photo.type() != CV_32FC3) {
+    Fail("PhotoToTensor: expected a float RGB photo (CV_32FC3)");
+  }
   for (int y = 0; y < batch->h; ++y) {
-    const cv::Vec3b* row = photo.ptr<cv::Vec3b>(y0 + y) + x0;
+    const float* row = photo.ptr<float>(y0 + y) + 3 * x0;
     for (int x = 0; x < batch->w; ++x)
       for (int c = 0; c < 3; ++c)
-        batch->Plane(b, c)[size_t(y) * batch->w + x] = row[x][c] / 127.5f - 1.f;
+        batch->Plane(b, c)[size_t(y) * batch->w + x] =
+            2.f * row[3 * x + c] - 1.f;
   }
-  (void)hw;
 }
 
-std::vector<cv::Mat> LoadPhotoFolder(const std::string& dir) {
-  namespace fs = std::filesystem;
-  if (!fs::is_directory(dir)) FailAt(dir, "not a folder of photos");
-  std::vector<std::string> paths;
-  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
-    std::string ext = entry.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-    if (entry.is_regular_file() &&
-        (ext == ".jpg" || ext == ".jpeg" || ext == ".png"))
-      paths.push_back(entry.path().string());
-  }
-  std::sort(paths.begin(), paths.end());
+std::vector<cv::Mat> LoadPhotoFolder(const std::string& dir,
+                                     std::vector<std::string>* paths) {
+  const std::vector<std::string> files = ListImageFiles(dir, true);
+  if (files.empty()) FailAt(dir, "no .jpg or .png photos found");
   std::vector<cv::Mat> photos;
-  for (const std::string& path : paths) {
-    cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR);
-    if (bgr.empty()) FailAt(path, "unreadable image");
-    cv::Mat rgb;
-    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-    photos.push_back(rgb);
-  }
-  if (photos.empty()) FailAt(dir, "no .jpg or .png photos found");
+  for (const std::string& path : files) photos.push_back(DecodeImageFile(path));
+  if (paths) *paths = files;
   return photos;
 }
 

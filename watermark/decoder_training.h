@@ -85,8 +85,13 @@ struct ValidationResult {
   int images = 0;
 };
 
-// Photos in `dir` (recursive), RGB 8-bit; throws Error if none readable.
-std::vector<cv::Mat> LoadPhotoFolder(const std::string& dir);
+// The .jpg/.png photos in `dir` (recursive, sorted by path), each decoded by
+// DecodeImageFile (float RGB in [0, 1], CV_32FC3, EXIF orientation ignored
+// as every command reads images); Error naming the folder if it holds none,
+// or the first file that is not a readable image. `paths` (if given) gets
+// the photos' file paths, in the same order.
+std::vector<cv::Mat> LoadPhotoFolder(const std::string& dir,
+                                     std::vector<std::string>* paths = nullptr);
 
 // Bit accuracy and PSNR of `model` on a center crop (side `crop`, the whole
 // photo when 0) of each photo, one fixed-seed random message per photo, under
@@ -130,8 +135,9 @@ float NextPsnrTarget(const DecoderTrainingOptions& options, int64_t step,
 // kCuda and CUDA is unusable.
 void TrainDecoder(const DecoderTrainingOptions& options);
 
-// Converts 8-bit RGB pixels [y0,y0+h) x [x0,x0+w) of `photo` into slot b of
-// `batch` [N,3,h,w] in [-1,1].
+// Converts the float RGB pixels (CV_32FC3 in [0, 1], LoadPhotoFolder's)
+// [y0,y0+h) x [x0,x0+w) of `photo` into slot b of `batch` [N,3,h,w] in
+// [-1,1].
 void PhotoToTensor(const cv::Mat& photo, int x0, int y0, int b, Tensor* batch);
 
 }  // namespace watergs

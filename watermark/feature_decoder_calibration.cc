@@ -153,9 +153,12 @@ MatrixXd SteerableSubspace(const std::vector<ImageRGB>& crops,
 std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
                                        int crop, int count, uint32_t seed) {
   std::vector<const cv::Mat*> usable;
-  for (const cv::Mat& p : photos)
-    if (p.rows >= crop && p.cols >= crop && p.type() == CV_8UC3)
-      usable.push_back(&p);
+  for (const cv::Mat& p : photos) {
+    if (p.type() != CV_32FC3)
+      Fail("SamplePhotoCrops: expected float RGB photos (CV_32FC3), got " +
+           cv::typeToString(p.type()));
+    if (p.rows >= crop && p.cols >= crop) usable.push_back(&p);
+  }
   if (usable.empty())
     Fail("no photo is at least " + std::to_string(crop) + " pixels a side");
   std::mt19937 rng(seed);
@@ -167,10 +170,8 @@ std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
     const int y0 = int(rng() % uint32_t(photo.rows - crop + 1));
     ImageRGB image(crop, crop);
     for (int y = 0; y < crop; ++y) {
-      const cv::Vec3b* row = photo.ptr<cv::Vec3b>(y0 + y) + x0;
-      for (int x = 0; x < crop; ++x)
-        for (int c = 0; c < 3; ++c)
-          image.data[(size_t(y) * crop + x) * 3 + c] = row[x][c] / 255.f;
+      const float* row = photo.ptr<float>(y0 + y) + 3 * x0;
+      std::copy(row, row + 3 * crop, image.At(0, y));
     }
     crops.push_back(std::move(image));
   }
@@ -277,12 +278,15 @@ DecoderBalance MeasureBalance(BitDecoder& decoder,
   for (size_t i = 0; i < images.size(); ++i) {
     const std::vector<float> z = decoder.Logits(images[i]);
     int errors = 0;
+    Bits read(bits);
     for (int b = 0; b < bits; ++b) {
       logits(i, b) = z[b];
       const bool one = z[b] > 0;
+      read[b] = one;
       ones += one;
       errors += one != bool(claimed[b]);
     }
+    balance.image_bits.push_back(std::move(read));
     balance.min_bit_errors = std::min(balance.min_bit_errors, errors);
     if (BinomialTailPValue(bits - errors, bits) <= present_p)
       ++balance.false_positives;

@@ -52,7 +52,8 @@ struct FeatureCalibrationReport {
   double seconds = 0;
 };
 
-// Random crops (side `crop`) of `photos` (RGB, 8 bits), `count` of them,
+// Random crops (side `crop`) of `photos` (float RGB in [0, 1], CV_32FC3, as
+// LoadPhotoFolder decodes them: the one conversion), `count` of them,
 // drawn deterministically from `seed`; photos smaller than the crop are
 // skipped (Error if none is large enough).
 std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
@@ -77,6 +78,8 @@ struct DecoderBalance {
   // present_p, and the smallest bit-error count seen.
   int false_positives = 0;
   int min_bit_errors = 0;
+  // The bits each image reads (logit > 0 -> 1), in the images' order.
+  std::vector<Bits> image_bits;
 };
 DecoderBalance MeasureBalance(BitDecoder& decoder,
                               const std::vector<ImageRGB>& images,

@@ -4,17 +4,19 @@
 // the false positives an owner's p-value assumes away.
 #include <iomanip>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "plugin/command.h"
-#include "plugin/image_file.h"
 #include "plugin/option_parser.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/decoder_training.h"
 #include "watermark/feature_decoder_calibration.h"
+#include "watermark/image_reading.h"
+#include "watermark/message.h"
 #include "watermark/verification.h"
 
 namespace {
@@ -40,7 +42,9 @@ int RunDecoderStats(int argc, char** argv) {
   parser.Add("false_positive_rate", &present_p,
              "p-value at or below which the verdict says present");
   parser.Add("seed", &seed, "Seed of the crops");
-  parser.Add("json", &json_path, "Write the figures as JSON here");
+  parser.Add("json", &json_path,
+             "Write the figures as JSON here (whole images: also each "
+             "file's bits)");
   if (!parser.Parse(argc, argv)) return 0;
   if (crop < 0 || (crop > 0 && crops < 2))
     Fail("--crop must be >= 0 and --crops >= 2");
@@ -57,7 +61,9 @@ int RunDecoderStats(int argc, char** argv) {
   } else {
     claimed = watergs::ParseMessage(message, bits);
   }
-  const std::vector<cv::Mat> photos = watergs::LoadPhotoFolder(image_path);
+  std::vector<std::string> paths;
+  const std::vector<cv::Mat> photos =
+      watergs::LoadPhotoFolder(image_path, &paths);
   std::vector<watergs::ImageRGB> images;
   if (crop > 0) {
     images = watergs::SamplePhotoCrops(photos, crop, crops, uint32_t(seed));
@@ -85,7 +91,17 @@ int RunDecoderStats(int argc, char** argv) {
          << ", \"max_bit_ones\": " << b.max_bit_ones
          << ", \"mean_abs_correlation\": " << b.mean_abs_correlation
          << ", \"false_positives\": " << b.false_positives
-         << ", \"min_bit_errors\": " << b.min_bit_errors << "}\n";
+         << ", \"min_bit_errors\": " << b.min_bit_errors;
+    if (crop == 0) {
+      // Whole images: what each file reads, by path.
+      nlohmann::json per_image = nlohmann::json::array();
+      for (size_t i = 0; i < paths.size(); ++i) {
+        per_image.push_back({{"path", paths[i]},
+                             {"bits", watergs::BitsToString(b.image_bits[i])}});
+      }
+      json << ", \"per_image\": " << per_image.dump();
+    }
+    json << "}\n";
     watergs::AtomicWriteFile(json_path, json.str());
   }
   return 0;

@@ -56,11 +56,15 @@ WorkspaceOptions OptionsFor(const std::string& root) {
   return options;
 }
 
-// The decoded file as float RGB in [0, 1], to compare LoadView with.
+// The decoded file as float RGB in [0, 1] (byte / 255.f, as every command
+// reads 8-bit files), to compare LoadView with.
 cv::Mat FileAsFloatRGB(const std::string& path) {
-  cv::Mat rgb;
-  cv::imread(path, cv::IMREAD_COLOR).convertTo(rgb, CV_32FC3, 1.0 / 255);
-  cv::cvtColor(rgb, rgb, cv::COLOR_BGR2RGB);
+  const cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR);
+  cv::Mat rgb(bgr.rows, bgr.cols, CV_32FC3);
+  for (int y = 0; y < bgr.rows; ++y)
+    for (int x = 0; x < bgr.cols; ++x)
+      for (int c = 0; c < 3; ++c)
+        rgb.at<cv::Vec3f>(y, x)[c] = bgr.at<cv::Vec3b>(y, x)[2 - c] / 255.f;
   return rgb;
 }
 

@@ -1,0 +1,256 @@
+// `watergs detect`: the verdict of `extract` for a leak that is not a 3D
+// file: screenshots, video frames, photos of a screen. Decodes each image
+// file with the frozen decoder (read as every command reads images:
+// watermark/image_reading.h), prints each image's bit errors, p-value and
+// verdict, then averages the logits over all images into one recovered
+// message and tests it exactly as `extract` aggregates its views
+// (watermark/view_aggregation.h). A verdict is a result, not an error: the
+// exit code is 0 for all of them; unusable input fails in one line naming
+// the file.
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
+
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "plugin/command.h"
+#include "plugin/option_parser.h"
+#include "watermark/bit_decoder.h"
+#include "watermark/extractor.h"
+#include "watermark/image_reading.h"
+#include "watermark/message.h"
+#include "watermark/verification.h"
+#include "watermark/view_aggregation.h"
+
+namespace watergs {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Without --max_side, images larger than this on a side are refused: far
+// larger than any render the decoder was made for (and a decompression
+// bomb's way to exhaust memory).
+constexpr int kMaxSideAsIs = 8192;
+
+// The files of --image_path: comma-separated entries, each a file (taken as
+// is) or a folder (its .png/.jpg/.jpeg files, sorted by name).
+std::vector<std::string> ImageFiles(const std::string& list) {
+  std::vector<std::string> files;
+  size_t start = 0;
+  while (start <= list.size()) {
+    const size_t end = std::min(list.find(',', start), list.size());
+    const std::string entry = list.substr(start, end - start);
+    start = end + 1;
+    if (entry.empty()) continue;
+    if (fs::is_directory(entry)) {
+      const std::vector<std::string> found = ListImageFiles(entry, false);
+      if (found.empty()) FailAt(entry, "no .png or .jpg images in the folder");
+      files.insert(files.end(), found.begin(), found.end());
+    } else {
+      if (!fs::exists(entry)) FailAt(entry, "file not found");
+      files.push_back(entry);
+    }
+  }
+  if (files.empty()) Fail("--image_path: no image given");
+  return files;
+}
+
+// The file as the decoder reads it: decoded, refused when it carries no
+// signal or is far too large, downscaled (INTER_AREA) to `max_side` on its
+// longer side when larger.
+ImageRGB LoadImage(const std::string& path, int max_side) {
+  cv::Mat rgb = DecodeImageFile(path);
+  const int longer = std::max(rgb.cols, rgb.rows);
+  if (max_side > 0 && longer > max_side) {
+    const double f = double(max_side) / longer;
+    const cv::Size size(std::max(1, int(std::lround(rgb.cols * f))),
+                        std::max(1, int(std::lround(rgb.rows * f))));
+    cv::resize(rgb, rgb, size, 0, 0, cv::INTER_AREA);
+  } else if (max_side == 0 && longer > kMaxSideAsIs) {
+    FailAt(path, "is " + std::to_string(rgb.cols) + "x" +
+                     std::to_string(rgb.rows) + ", far larger than renders (" +
+                     std::to_string(kMaxSideAsIs) +
+                     " pixels a side at most): downscale it with --max_side");
+  }
+  // Uniform: every channel within one 8-bit level. Such an image decodes to
+  // the decoder's bias alone: it says nothing about a watermark.
+  std::vector<cv::Mat> channels;
+  cv::split(rgb, channels);
+  bool uniform = true;
+  for (const cv::Mat& channel : channels) {
+    double lo = 0, hi = 0;
+    cv::minMaxLoc(channel, &lo, &hi);
+    uniform = uniform && hi - lo <= 1.0 / 255 + 1e-6;
+  }
+  if (uniform) {
+    FailAt(path,
+           "uniform image (one colour) carries no signal: nothing to decode");
+  }
+  return ToImageRGB(rgb);
+}
+
+std::string Percent(double fraction) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.1f%%", 100 * fraction);
+  return text;
+}
+
+int RunDetect(int argc, char** argv) {
+  std::string image_path, decoder_path, message, json_path;
+  double present_p = VerificationThresholds().present_p;
+  int max_side = 0;
+  int num_threads = 0;
+  OptionParser parser(
+      "detect",
+      "Decodes the WATER-GS watermark from image files (screenshots, video "
+      "frames, photos of a screen: a leak that is not a 3D file) and tests "
+      "it against a claimed message as extract does: each image's bit "
+      "errors, p-value and verdict, then the logits averaged over all "
+      "images: binomial p-value under the null hypothesis of unmarked "
+      "images; 'watermark present' at p <= --false_positive_rate, 'absent' "
+      "above p = 0.01, 'inconclusive' between.");
+  parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  parser.AddRequired("image_path", &image_path,
+                     "Image files (PNG/JPEG, 8 or 16 bits) and folders of "
+                     "them, comma-separated; a folder: its image files, "
+                     "sorted by name");
+  parser.Add("message", &message,
+             std::string("Claimed message: ") + kMessageFormats);
+  parser.Add("false_positive_rate", &present_p,
+             "p-value at or below which the watermark is declared present");
+  parser.Add("max_side", &max_side,
+             "Downscale (INTER_AREA) images whose longer side exceeds N "
+             "pixels to N (0 = decode as is; images over " +
+                 std::to_string(kMaxSideAsIs) + " pixels are then refused)");
+  parser.Add("num_threads", &num_threads, "Threads (0 = all cores)");
+  parser.Add("json", &json_path, "Write the result as JSON to this file");
+  if (!parser.Parse(argc, argv)) return 0;
+  if (!(present_p > 0 && present_p < 0.01)) {
+    Fail("--false_positive_rate must be in (0, 0.01)");
+  }
+  if (max_side < 0) Fail("--max_side must be >= 0");
+  if (num_threads > 0) omp_set_num_threads(num_threads);
+  if (!json_path.empty()) CheckOutputFile(json_path);
+
+  const std::vector<std::string> files = ImageFiles(image_path);
+  const std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(decoder_path, parser.device());
+  const int num_bits = decoder->NumBits();
+  Bits expected;
+  if (!message.empty()) expected = ParseMessage(message, num_bits);
+  VerificationThresholds thresholds;
+  thresholds.present_p = present_p;
+
+  // Every image is decoded before anything is printed: unusable input
+  // fails in one line.
+  std::vector<ViewDecode> views;
+  std::vector<std::pair<int, int>> sizes;
+  for (const std::string& path : files) {
+    const ImageRGB image = LoadImage(path, max_side);
+    ViewDecode view;
+    view.name = path;
+    try {
+      view.logits = decoder->Logits(image);
+    } catch (const Error& e) {
+      FailAt(path, e.what());  // e.g. smaller than the decoder's pooling
+    }
+    sizes.emplace_back(image.width, image.height);
+    views.push_back(std::move(view));
+  }
+  std::printf("detect: %zu images, %d-bit decoder %s\n", files.size(), num_bits,
+              decoder_path.c_str());
+  for (size_t k = 0; k < views.size(); ++k) {
+    const ViewDecode& view = views[k];
+    Bits bits(num_bits);
+    for (int i = 0; i < num_bits; ++i) bits[i] = view.logits[i] > 0;
+    if (expected.empty()) {
+      std::printf("detect: %s (%dx%d): hex %s\n", view.name.c_str(),
+                  sizes[k].first, sizes[k].second, BitsToHex(bits).c_str());
+    } else {
+      const int errors = HammingDistance(bits, expected);
+      const double p = BinomialTailPValue(num_bits - errors, num_bits);
+      std::printf(
+          "detect: %s (%dx%d): %d of %d bits wrong (BER %s), p-value %.3g, "
+          "%s\n",
+          view.name.c_str(), sizes[k].first, sizes[k].second, errors, num_bits,
+          Percent(double(errors) / num_bits).c_str(), p,
+          ToString(Decide(p, thresholds)).c_str());
+    }
+  }
+
+  const ExtractionResult r =
+      AggregateViews(std::move(views), num_bits,
+                     expected.empty() ? nullptr : &expected, thresholds);
+  std::printf("detect: all %zu images (mean logits): recovered hex %s\n",
+              r.views.size(), BitsToHex(r.recovered).c_str());
+  std::printf("detect: recovered bits %s\n", BitsToString(r.recovered).c_str());
+  const ViewBerSpread spread = SpreadOfViewBer(r);
+  if (r.has_expected) {
+    std::printf("detect: expected bits  %s\n",
+                BitsToString(r.expected).c_str());
+    std::printf(
+        "detect: BER %s (%d of %d bits); single-image BER mean %s median %s "
+        "p90 %s min %s max %s\n",
+        Percent(r.ber).c_str(), r.bit_errors, num_bits,
+        Percent(spread.mean).c_str(), Percent(spread.median).c_str(),
+        Percent(spread.p90).c_str(), Percent(spread.min).c_str(),
+        Percent(spread.max).c_str());
+    std::printf(
+        "detect: p-value %.3g (chance of this many matching bits from "
+        "unmarked images)\n",
+        r.p_value);
+    std::printf("detect: verdict: %s (false-positive rate %.0e)\n",
+                ToString(r.verdict).c_str(), present_p);
+  }
+  if (!json_path.empty()) {
+    // extract's JSON, with each image's bits, logits, p-value and verdict,
+    // and the whole single-image BER distribution.
+    nlohmann::json j = nlohmann::json::parse(ExtractionToJson(r));
+    j["command"] = "detect";
+    j["num_images"] = r.views.size();
+    if (r.has_expected) {
+      j["view_ber"] = {{"mean", spread.mean},
+                       {"median", spread.median},
+                       {"p90", spread.p90},
+                       {"min", spread.min},
+                       {"max", spread.max}};
+    }
+    nlohmann::json images = nlohmann::json::array();
+    for (size_t k = 0; k < r.views.size(); ++k) {
+      const ViewDecode& v = r.views[k];
+      Bits bits(num_bits);
+      for (int i = 0; i < num_bits; ++i) bits[i] = v.logits[i] > 0;
+      nlohmann::json e = {{"name", v.name},
+                          {"width", sizes[k].first},
+                          {"height", sizes[k].second},
+                          {"bits", BitsToString(bits)},
+                          {"logits", v.logits}};
+      if (v.bit_errors >= 0) {
+        const double p = BinomialTailPValue(num_bits - v.bit_errors, num_bits);
+        e["bit_errors"] = v.bit_errors;
+        e["p_value"] = p;
+        e["verdict"] = ToString(Decide(p, thresholds));
+      }
+      images.push_back(e);
+    }
+    j["views"] = images;
+    AtomicWriteFile(json_path, j.dump(2) + "\n");
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace watergs
+
+WATERGS_COMMAND(detect,
+                "Detects a WATER-GS watermark in image files (screenshots, "
+                "frames, photos of a screen)",
+                watergs::RunDetect);

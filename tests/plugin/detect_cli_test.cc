@@ -1,0 +1,193 @@
+// CLI tests of `watergs detect` (issue 24, item 3): renders of a watermarked
+// model written as PNG files give "watermark present" for the owner's claim
+// and each image the bits `extract` reads from the same camera; renders of
+// the raw model do not; JSON; and each unusable input fails in one line
+// naming the file.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gaussian/file_util.h"
+#include "gaussian/ply_io.h"
+#include "plugin/image_file.h"
+#include "plugin/training_views.h"
+#include "plugin/workspace.h"
+#include "tests/plugin/rendered_images.h"
+#include "tests/plugin/rendered_workspace.h"
+#include "watermark/bit_decoder.h"
+#include "watermark/extractor.h"
+#include "watermark/message.h"
+
+namespace watergs {
+namespace {
+
+using testing::ExpectOneLineError;
+using testing::RunCommand;
+using testing::TempDir;
+using testing::WatergsBin;
+
+const std::string kClaim = "hex:9c2e5b71a4d3";
+const std::string kDecoder =
+    std::string(WATERGS_SOURCE_DIR) + "/watermark/models/decoder_48.bin";
+
+nlohmann::json ReadJson(const std::string& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+// Writes `renders` as PNG files view_<k>.png in `folder`; returns it.
+std::string WritePngs(const std::vector<ImageRGB>& renders,
+                      const std::string& folder) {
+  CreateDirectories(folder);
+  for (size_t k = 0; k < renders.size(); ++k) {
+    WriteImageFile(folder + "/view_" + std::to_string(k) + ".png", renders[k]);
+  }
+  return folder;
+}
+
+TEST(DetectCli, ReadsTheWatermarkFromRenderedImagesAsExtractDoes) {
+  TempDir dir("detect_cli");
+  testing::SyntheticModelOptions options;
+  options.num_images = 6;
+  options.width = 48;
+  options.height = 36;
+  GaussianModel raw;
+  WorkspaceOptions wo;
+  wo.workspace_path = testing::MakeRenderedWorkspace(dir / "ws", options, &raw);
+  // A real embedding with the shipped decoder, short: small frames, no 3D
+  // distortions, stopped once the check views read the claim.
+  WritePly(dir / "raw.ply", raw);
+  const auto embed = RunCommand(
+      WatergsBin() + " embed --input_path " + (dir / "raw.ply") +
+      " --workspace_path " + wo.workspace_path + " --decoder " + kDecoder +
+      " --message " + kClaim + " --output_path " + (dir / "wm.ply") +
+      " --iterations 500 --distortions none --crop_size 0 --densify off"
+      " --check_every 20 --check_views 6 --patience 1 --num_threads 2");
+  ASSERT_EQ(embed.exit_code, 0) << embed.output;
+  const GaussianModel wm = ReadPly(dir / "wm.ply").model;
+  const Workspace workspace = Workspace::Open(wo);
+  std::unique_ptr<BitDecoder> decoder = LoadBitDecoder(kDecoder, Device::kCpu);
+  const WorkspaceViews views(workspace);
+  std::vector<RenderCamera> cameras;
+  std::vector<std::string> names;
+  for (size_t v = 0; v < views.NumViews(); ++v) {
+    cameras.push_back(views.Camera(v));
+    names.push_back(views.Name(v));
+  }
+  const std::string wm_pngs =
+      WritePngs(testing::RenderViews(wm, workspace), dir / "wm_png");
+  const std::string raw_pngs =
+      WritePngs(testing::RenderViews(raw, workspace), dir / "raw_png");
+
+  const std::string base = WatergsBin() + " detect --decoder " + kDecoder;
+  const std::string json = dir / "detect.json";
+  const auto present = RunCommand(base + " --image_path " + wm_pngs +
+                                  " --message " + kClaim + " --json " + json);
+  ASSERT_EQ(present.exit_code, 0) << present.output;
+  EXPECT_NE(present.output.find("verdict: watermark present"),
+            std::string::npos)
+      << present.output;
+  EXPECT_NE(present.output.find("single-image BER mean"), std::string::npos);
+  const nlohmann::json j = ReadJson(json);
+  EXPECT_EQ(j["command"], "detect");
+  EXPECT_EQ(j["verdict"], "watermark present");
+  EXPECT_EQ(j["num_bits"], 48);
+  EXPECT_TRUE(j["view_ber"].contains("p90"));
+  ASSERT_EQ(j["views"].size(), 6u);
+
+  // Each image reads the bits extract reads from the same camera's render
+  // (stored in 8 bits, as the file stores it), and the aggregate is the
+  // same: the logits of the files are those of the quantised renders.
+  const Bits claim_bits = ParseMessage(kClaim, 48);
+  const ExtractionResult extracted = ExtractWatermark(
+      *MakeCpuRasterizer(), wm, cameras, names, *decoder, &claim_bits,
+      {0, 0, 0}, VerificationThresholds(), testing::Quantise8);
+  ASSERT_EQ(extracted.views.size(), 6u);
+  for (size_t v = 0; v < 6; ++v) {
+    const auto& image = j["views"][v];
+    EXPECT_EQ(image["name"], wm_pngs + "/view_" + std::to_string(v) + ".png");
+    EXPECT_EQ(image["bit_errors"], extracted.views[v].bit_errors) << v;
+    EXPECT_EQ(image["logits"].get<std::vector<float>>(),
+              extracted.views[v].logits)
+        << v;
+  }
+  EXPECT_EQ(j["recovered_bits"], BitsToString(extracted.recovered));
+  EXPECT_EQ(j["p_value"], extracted.p_value);
+
+  // The raw model's renders do not carry the claim.
+  const auto absent =
+      RunCommand(base + " --image_path " + raw_pngs + " --message " + kClaim);
+  ASSERT_EQ(absent.exit_code, 0) << absent.output;
+  EXPECT_EQ(absent.output.find("verdict: watermark present"), std::string::npos)
+      << absent.output;
+  EXPECT_NE(absent.output.find("verdict: "), std::string::npos);
+
+  // Files and folders mixed, comma-separated; one line per image.
+  const auto mixed =
+      RunCommand(base + " --image_path " + raw_pngs + "/view_0.png," + wm_pngs +
+                 " --message " + kClaim);
+  ASSERT_EQ(mixed.exit_code, 0) << mixed.output;
+  EXPECT_NE(mixed.output.find("detect: 7 images"), std::string::npos)
+      << mixed.output;
+}
+
+TEST(DetectCli, RefusesUnusableInputInOneLineNamingTheFile) {
+  TempDir dir("detect_cli_errors");
+  const std::string ok = dir / "ok.png";
+  cv::Mat noise(40, 40, CV_8UC3);
+  cv::randu(noise, 0, 256);
+  ASSERT_TRUE(cv::imwrite(ok, noise));
+  const std::string base = WatergsBin() + " detect --decoder " + kDecoder;
+  ASSERT_EQ(RunCommand(base + " --image_path " + ok).exit_code, 0);
+
+  const std::string text = dir / "notes.png";
+  std::ofstream(text) << "not an image\n";
+  ExpectOneLineError(RunCommand(base + " --image_path " + text),
+                     text + ": cannot decode");
+  std::vector<uchar> bytes;
+  ASSERT_TRUE(cv::imencode(".jpg", noise, bytes));
+  const std::string truncated = dir / "cut.jpg";
+  std::ofstream(truncated, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), bytes.size() / 2);
+  ExpectOneLineError(RunCommand(base + " --image_path " + ok + "," + truncated),
+                     truncated + ": truncated JPEG");
+  const std::string tiny = dir / "tiny.png";
+  ASSERT_TRUE(cv::imwrite(tiny, noise(cv::Rect(0, 0, 3, 3))));
+  ExpectOneLineError(RunCommand(base + " --image_path " + tiny),
+                     tiny + ": feature decoder: input of 3x3");
+  const std::string grey = dir / "grey.png";
+  ASSERT_TRUE(
+      cv::imwrite(grey, cv::Mat(40, 40, CV_8UC3, cv::Scalar::all(128))));
+  ExpectOneLineError(RunCommand(base + " --image_path " + grey),
+                     grey + ": uniform image (one colour) carries no signal");
+  const std::string huge = dir / "huge.png";
+  cv::Mat wide(160, 8200, CV_8UC3);
+  cv::randu(wide, 0, 256);
+  ASSERT_TRUE(cv::imwrite(huge, wide));
+  ExpectOneLineError(RunCommand(base + " --image_path " + huge),
+                     huge + ": is 8200x160, far larger than renders");
+  const auto resized =
+      RunCommand(base + " --image_path " + huge + " --max_side 410");
+  ASSERT_EQ(resized.exit_code, 0) << resized.output;
+  EXPECT_NE(resized.output.find("(410x8)"), std::string::npos)
+      << resized.output;
+  ExpectOneLineError(RunCommand(base + " --image_path " + ok +
+                                " --message hex:00112233445566"),
+                     "needs 56 bits but the decoder reads 48");
+  ExpectOneLineError(RunCommand(WatergsBin() + " detect --decoder " + ok +
+                                " --image_path " + ok),
+                     ok + ": ");
+  ExpectOneLineError(RunCommand(base + " --image_path " + (dir / "nope.png")),
+                     dir / "nope.png: file not found");
+  CreateDirectories(dir / "empty");
+  ExpectOneLineError(RunCommand(base + " --image_path " + (dir / "empty")),
+                     dir / "empty: no .png or .jpg images");
+}
+
+}  // namespace
+}  // namespace watergs
