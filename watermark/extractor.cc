@@ -1,5 +1,6 @@
 // WATER-GS watermark extraction and verification (see extractor.h).
 #include "watermark/extractor.h"
+#include "watermark/view_aggregation.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -48,13 +49,10 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
     Fail("extract: expected message has " + std::to_string(expected->size()) +
          " bits, the decoder reads " + std::to_string(num_bits));
   }
-  ExtractionResult result;
-  result.thresholds = thresholds;
-  result.mean_logits.assign(num_bits, 0.f);
   RenderOptions options;
   options.background = background;
   ImageRGB image;
-  std::vector<double> view_ber;
+  std::vector<ViewDecode> views;
   for (size_t k = 0; k < cameras.size(); ++k) {
     rasterizer.Forward(model, cameras[k], options, &image, nullptr);
     for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
@@ -62,38 +60,9 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
     ViewDecode view;
     view.name = k < names.size() ? names[k] : "free_" + std::to_string(k);
     view.logits = decoder.Logits(image);
-    for (int i = 0; i < num_bits; ++i) {
-      result.mean_logits[i] += view.logits[i] / cameras.size();
-    }
-    if (expected) {
-      Bits bits(num_bits);
-      for (int i = 0; i < num_bits; ++i) bits[i] = view.logits[i] > 0;
-      view.bit_errors = HammingDistance(bits, *expected);
-      view_ber.push_back(double(view.bit_errors) / num_bits);
-    }
-    result.views.push_back(std::move(view));
+    views.push_back(std::move(view));
   }
-  result.recovered.resize(num_bits);
-  for (int i = 0; i < num_bits; ++i) {
-    result.recovered[i] = result.mean_logits[i] > 0;
-  }
-  if (expected) {
-    result.has_expected = true;
-    result.expected = *expected;
-    result.bit_errors = HammingDistance(result.recovered, *expected);
-    result.ber = double(result.bit_errors) / num_bits;
-    std::sort(view_ber.begin(), view_ber.end());
-    result.min_view_ber = view_ber.front();
-    result.max_view_ber = view_ber.back();
-    const size_t m = view_ber.size();
-    result.median_view_ber =
-        m % 2 ? view_ber[m / 2] : 0.5 * (view_ber[m / 2 - 1] + view_ber[m / 2]);
-    result.p90_view_ber = view_ber[(9 * m + 9) / 10 - 1];
-    for (double b : view_ber) result.mean_view_ber += b / m;
-    result.p_value = BinomialTailPValue(num_bits - result.bit_errors, num_bits);
-    result.verdict = Decide(result.p_value, thresholds);
-  }
-  return result;
+  return AggregateViews(std::move(views), num_bits, expected, thresholds);
 }
 
 std::string ExtractionToJson(const ExtractionResult& r) {

@@ -73,6 +73,8 @@ ExtractionResult AggregateViews(std::vector<ViewDecode> views, int num_bits,
     result.min_view_ber = spread.min;
     result.median_view_ber = spread.median;
     result.max_view_ber = spread.max;
+    result.mean_view_ber = spread.mean;
+    result.p90_view_ber = spread.p90;
     result.p_value = BinomialTailPValue(num_bits - result.bit_errors, num_bits);
     result.verdict = Decide(result.p_value, thresholds);
   }
