@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# One point of a single-view curve (docs/history.md, "One view is enough"): embeds a trained
+# model with --eval and the given options, then reads the 6 held-out views and 12 free
+# viewpoints one by one, and the held-out PSNR. Appends one line to OUT/results.txt:
+#   LABEL held MEAN% p90 P90% agg ERRORS [per-view errors] | free ... | PSNR dB | iterations, s | options
+#   datasets_scripts/single_view_probe.sh OUT LABEL [embed options...]
+# Environment: WATERGS_BIN, SCENE (workspace, default the demo scene), RAW (trained PLY; default
+# OUT/raw/point_cloud.ply, trained here as run_demo.sh trains it), DECODER, DOWNSCALE (2).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+out=${1:?usage: single_view_probe.sh OUT LABEL [embed options...]}; label=${2:?label}; shift 2
+bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
+scene="${SCENE:-$root/datasets_scripts/demo_scene}"
+decoder="${DECODER:-$root/watermark/models/decoder_48.bin}"
+ds="${DOWNSCALE:-2}"
+raw="${RAW:-$out/raw/point_cloud.ply}"
+msg=text:WGS-26
+if [ ! -f "$raw" ]; then
+  "$bin" train --workspace_path "$scene" --output_path "$(dirname "$raw")" --downscale "$ds" \
+    --iterations 2000 --densify_until_iter 1000 --eval --test_iterations 2000 > "$out/raw.log"
+fi
+run="$out/runs/$label"; mkdir -p "$run"
+t0=$SECONDS
+"$bin" embed --input_path "$raw" --workspace_path "$scene" --downscale "$ds" --decoder "$decoder" \
+  --message "$msg" --output_path "$run/wm.ply" --eval "$@" > "$run/embed.log" 2>&1
+seconds=$((SECONDS - t0))
+read_views() {  # NAME [extract options]
+  local name=$1; shift
+  "$bin" extract --input_path "$run/wm.ply" --workspace_path "$scene" --downscale "$ds" \
+    --decoder "$decoder" --message "$msg" --json "$run/$name.json" "$@" > "$run/$name.txt"
+}
+read_views held --split test
+read_views free --num_views 12 --seed 1
+"$bin" render --input_path "$run/wm.ply" --workspace_path "$scene" --downscale "$ds" \
+  --output_path "$run/render" --split test > "$run/render.txt" 2>&1
+python3 - "$run" "$label" "$seconds" "$*" "$out/results.txt" <<'PY'
+import json, re, sys
+run, label, seconds, args, results = sys.argv[1:]
+def views(name):
+    j = json.load(open(f"{run}/{name}.json"))
+    e = [v["bit_errors"] for v in j["views"]]
+    p90 = sorted(e)[(9 * len(e) + 9) // 10 - 1]
+    return e, 100 * sum(e) / len(e) / j["num_bits"], 100 * p90 / j["num_bits"], j["bit_errors"]
+h, f = views("held"), views("free")
+psnr = re.search(r"mean PSNR ([0-9.]+)", open(f"{run}/render.txt").read()).group(1)
+its = re.search(r"embed: (\d+) iterations", open(f"{run}/embed.log").read()).group(1)
+line = (f"{label:24s} held {h[1]:5.1f}% p90 {h[2]:4.1f} agg {h[3]} {h[0]} | free {f[1]:5.1f}% p90 {f[2]:4.1f} "
+        f"agg {f[3]} | PSNR {psnr} | {its} it {seconds}s | {args}")
+print(line)
+open(results, "a").write(line + "\n")
+PY
