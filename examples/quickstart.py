@@ -20,8 +20,7 @@ trained = watergs.train(scene, out / "train", iterations=200, overwrite=True,
                         **common)
 print(f"trained: {trained.num_gaussians} Gaussians, PSNR {trained.psnr:.1f} dB")
 marked = watergs.embed(trained.ply_path, scene, decoder, message,
-                       out / "wm.ply", iterations=100, crop_size=0,
-                       densify="off", **common)
+                       out / "wm.ply", iterations=300, **common)
 for name, ply in [("unmarked", trained.ply_path),
                   ("watermarked", marked.output_path)]:
     r = watergs.extract(ply, scene, decoder, message=message, **common)

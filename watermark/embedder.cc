@@ -326,8 +326,8 @@ void Embedder::FindNeighbors() {
       if (u == v) continue;
       by_distance.emplace_back((views_.Camera(u).Center() - centre).norm(), u);
     }
-    const size_t k = std::min<size_t>(options_.free_view_neighbors,
-                                      by_distance.size());
+    const size_t k =
+        std::min<size_t>(options_.free_view_neighbors, by_distance.size());
     std::partial_sort(by_distance.begin(), by_distance.begin() + k,
                       by_distance.end());
     for (size_t i = 0; i < k; ++i) {
@@ -375,9 +375,8 @@ LossTerms Embedder::ImageLoss(const ImageRGB& rendered, const ImageRGB& truth,
 void Embedder::PlanFreeView(IterationPlan* plan) {
   const std::vector<size_t>* near =
       neighbors_.empty() ? nullptr : &neighbors_[plan->view];
-  const size_t other = near && !near->empty()
-                           ? (*near)[rng_() % near->size()]
-                           : NextView();
+  const size_t other =
+      near && !near->empty() ? (*near)[rng_() % near->size()] : NextView();
   const double t = std::uniform_real_distribution<double>(0, 1)(rng_);
   plan->camera = InterpolateCameras(plan->camera, views_.Camera(other), t);
   RenderOptions options;
@@ -433,10 +432,10 @@ EmbedStepStats Embedder::Step() {
     plan.decoder_crop = plan.crop;
   }
   if (options_.decoder_jitter.enabled()) {
-    const int w = plan.decoder_crop.empty() ? plan.crop.width
-                                            : plan.decoder_crop.width;
-    const int h = plan.decoder_crop.empty() ? plan.crop.height
-                                            : plan.decoder_crop.height;
+    const int w =
+        plan.decoder_crop.empty() ? plan.crop.width : plan.decoder_crop.width;
+    const int h =
+        plan.decoder_crop.empty() ? plan.crop.height : plan.decoder_crop.height;
     plan.jitter = SampleJitter(options_.decoder_jitter, w, h, &rng_);
   }
 
@@ -484,18 +483,17 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   auto t2 = Clock::now();
   const bool cropped = !plan.render_options.rect.empty();
   if (cropped) CropImage(*plan.truth, plan.crop, &truth_crop_);
-  stats->image = ImageLoss(render_, cropped ? truth_crop_ : *plan.truth,
-                           &grad_image_);
+  stats->image =
+      ImageLoss(render_, cropped ? truth_crop_ : *plan.truth, &grad_image_);
   auto t3 = Clock::now();
 
   // Message term on the crop: BCE(m, D(crop)) and its image gradient.
   if (options_.decoder_jitter.enabled()) {
     stats->bce = JitteredMessageLoss(plan, stats);
   } else {
-    stats->bce =
-        AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
-                       options_.gamma, &grad_image_, &stats->bit_errors,
-                       options_.margin);
+    stats->bce = AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
+                                options_.gamma, &grad_image_,
+                                &stats->bit_errors, options_.margin);
   }
   stats->total = stats->image.total + options_.gamma * stats->bce;
   auto t4 = Clock::now();
@@ -536,10 +534,9 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
 
 double Embedder::JitteredMessageLoss(const IterationPlan& plan,
                                      EmbedStepStats* stats) {
-  const PixelRect crop =
-      plan.decoder_crop.empty()
-          ? PixelRect{0, 0, render_.width, render_.height}
-          : plan.decoder_crop;
+  const PixelRect crop = plan.decoder_crop.empty()
+                             ? PixelRect{0, 0, render_.width, render_.height}
+                             : plan.decoder_crop;
   if (!plan.decoder_crop.empty()) {
     CropImage(render_, crop, &truth_crop_);  // scratch: the decoder's region
   }
@@ -604,8 +601,7 @@ double Embedder::DecodeViews(
     if (device_) {
       device_->Render(cameras[k], render_options, &image);
     } else {
-      rasterizer_->Forward(model_, cameras[k], render_options, &image,
-                           nullptr);
+      rasterizer_->Forward(model_, cameras[k], render_options, &image, nullptr);
     }
     for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
     const std::vector<float> logits = decoder_->Logits(image);

@@ -277,7 +277,8 @@ std::string EvaluationToMarkdown(const EvaluationReport& r) {
   out << "\n## Watermark (" << r.message.size()
       << " bits; present at p <= " << Format("%.0e", r.thresholds.present_p)
       << ")\n\n"
-      << "| Model | Attack | Kind | Gaussians | Aggregated BER (%) | Bit errors | "
+      << "| Model | Attack | Kind | Gaussians | Aggregated BER (%) | Bit "
+         "errors | "
          "p-value | Verdict | Single view BER mean / median / p90 (%) |\n"
       << "|---|---|---|---:|---:|---:|---:|---|---:|\n";
   for (const RobustnessRow& row : r.robustness) {

@@ -1,6 +1,5 @@
 // WATER-GS watermark extraction and verification (see extractor.h).
 #include "watermark/extractor.h"
-#include "watermark/view_aggregation.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -8,6 +7,7 @@
 #include <random>
 
 #include "gaussian/error.h"
+#include "watermark/view_aggregation.h"
 
 namespace watergs {
 

@@ -197,8 +197,9 @@ std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
   if (options.steerable_subspace != 0 &&
       (options.steerable_subspace < config.num_bits ||
        options.steerable_subspace > config.channels))
-    Fail("make_decoder: the steerable subspace must hold between num_bits "
-         "and channels directions");
+    Fail(
+        "make_decoder: the steerable subspace must hold between num_bits "
+        "and channels directions");
   auto net = std::make_unique<FeatureNet>(config, options.seed);
   StandardiseConvolution(
       SamplePhotoCrops(photos, options.crop, options.normalisation_crops,
@@ -232,8 +233,8 @@ std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
         SamplePhotoCrops(photos, options.crop, options.steering_crops,
                          options.seed + 5),
         whitening, k, 2, net.get(), &subspace_rng);
-    rows = RandomOrthogonalRows(config.num_bits, k, &rng) *
-           subspace.transpose();
+    rows =
+        RandomOrthogonalRows(config.num_bits, k, &rng) * subspace.transpose();
   }
   const MatrixXd projection = options.logit_scale * rows * whitening;
   const VectorXd bias = -projection * mean;

@@ -27,8 +27,9 @@ ViewBerSpread SpreadOfViewBer(std::vector<double> view_ber);
 // divided by the number of views), recovered bits (mean logit > 0), and,
 // given `expected` (may be null), each view's bit errors, the recovered
 // message's bit errors, BER, p-value, verdict under `thresholds` and the
-// spread (mean, median, p90, min, max) of the views' BER. Error (one line) if `views` is empty,
-// a view has another number of logits, or `expected` another length.
+// spread (mean, median, p90, min, max) of the views' BER. Error (one line) if
+// `views` is empty, a view has another number of logits, or `expected` another
+// length.
 ExtractionResult AggregateViews(std::vector<ViewDecode> views, int num_bits,
                                 const Bits* expected,
                                 const VerificationThresholds& thresholds);

@@ -45,8 +45,7 @@ void CheckDecoderJitter(const DecoderJitterOptions& o) {
   if (!(o.max_shift >= 0 && o.max_shift <= 8)) {
     Fail("decoder jitter: shift must be in [0, 8] pixels");
   }
-  if (!(o.min_scale >= 0.5 && o.min_scale <= o.max_scale &&
-        o.max_scale <= 2)) {
+  if (!(o.min_scale >= 0.5 && o.min_scale <= o.max_scale && o.max_scale <= 2)) {
     Fail("decoder jitter: scales must satisfy 0.5 <= min <= max <= 2");
   }
 }

@@ -143,9 +143,9 @@ int RunExtract(int argc, char** argv) {
   if (num_views > 0) {
     cameras = SampleFreeViewpoints(views, num_views, uint64_t(seed));
   } else {
-    const std::vector<size_t> pool = split == "test"
-                                         ? workspace.TestViews(true)
-                                         : workspace.TrainViews(split == "train");
+    const std::vector<size_t> pool =
+        split == "test" ? workspace.TestViews(true)
+                        : workspace.TrainViews(split == "train");
     if (pool.empty()) Fail("extract: --split " + split + " selects no camera");
     const size_t n = pool.size();
     const size_t count = max_views > 0 ? std::min<size_t>(max_views, n) : n;

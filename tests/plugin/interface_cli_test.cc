@@ -51,9 +51,9 @@ TEST(InterfaceCli, HelpVersionDefaultsAndMessageFormats) {
   EXPECT_EQ(help.output.rfind("Usage: watergs embed", 0), 0u) << help.output;
   EXPECT_NE(help.output.find("text:TEXT"), std::string::npos) << help.output;
   // As written, not as the nearest double prints with 17 digits.
-  EXPECT_NE(help.output.find("--gamma arg (=0.3)"), std::string::npos)
+  EXPECT_NE(help.output.find("--gamma arg (=0.03)"), std::string::npos)
       << help.output;
-  EXPECT_EQ(help.output.find("0.2999"), std::string::npos) << help.output;
+  EXPECT_EQ(help.output.find("0.0299"), std::string::npos) << help.output;
   ExpectOneLineError(RunCommand(WatergsBin() + " help nosuch"), "nosuch");
 
   const auto version = RunCommand(WatergsBin() + " --version");
