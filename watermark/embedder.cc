@@ -537,10 +537,9 @@ double Embedder::JitteredMessageLoss(const IterationPlan& plan,
   const PixelRect crop = plan.decoder_crop.empty()
                              ? PixelRect{0, 0, render_.width, render_.height}
                              : plan.decoder_crop;
-  if (!plan.decoder_crop.empty()) {
-    CropImage(render_, crop, &truth_crop_);  // scratch: the decoder's region
-  }
-  const ImageRGB& region = plan.decoder_crop.empty() ? render_ : truth_crop_;
+  if (!plan.decoder_crop.empty()) CropImage(render_, crop, &decoder_region_);
+  const ImageRGB& region =
+      plan.decoder_crop.empty() ? render_ : decoder_region_;
   JitterForward(region, plan.jitter, &jittered_);
   grad_jittered_ = ImageRGB(jittered_.width, jittered_.height);
   const double bce = AddMessageLoss(*decoder_, jittered_, PixelRect{}, targets_,

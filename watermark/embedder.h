@@ -261,7 +261,9 @@ class Embedder {
   // Reused per-iteration buffers.
   GaussianModel distorted_;
   std::vector<uint32_t> source_;
-  ImageRGB render_, truth_crop_, grad_image_, jittered_, grad_jittered_;
+  ImageRGB render_, truth_crop_, grad_image_;
+  // The decoder's region of the render, its jittered copy and gradient.
+  ImageRGB decoder_region_, jittered_, grad_jittered_;
   GaussianGradients grads_, distorted_grads_;
   std::vector<float> radii_;
   // The device-resident step (null: iterations run on the host model), and
