@@ -531,7 +531,8 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
        "decoding), each alone, read on the same views; then the raw model "
        "(the control, which should read &lsquo;absent&rsquo;) and any "
        "suspect copies given.</p>\n<table id=\"attacks\"><tr><th>Model</th>"
-       "<th>Attack</th><th class=\"num\">Gaussians</th><th>Bit error rate"
+       "<th>Attack</th><th class=\"num\">Gaussians</th><th class=\"num\">"
+       "PSNR vs truth</th><th>Bit error rate"
        "</th><th class=\"num\">Bits wrong</th><th class=\"num\">p-value</th>"
        "<th>Verdict</th><th class=\"num\">One view: BER mean / p90</th>"
        "</tr>\n";
@@ -549,7 +550,10 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
     }
     h << "<tr" << (row.model == "raw" ? " class=\"control\"" : "") << "><td>"
       << HtmlEscape(model) << "</td><td>" << attack << "</td><td class=\"num\">"
-      << row.num_gaussians << "</td><td class=\"nowrap\"><span "
+      << row.num_gaussians << "</td><td class=\"num\">"
+      << (std::isfinite(row.psnr) ? Printf("%.2f", row.psnr) + " dB"
+                                  : std::string("n/a"))
+      << "</td><td class=\"nowrap\"><span "
       << "class=\"barbox\"><span "
       << "class=\"bar\" style=\"width:" << Printf("%.0f", 100 * e.ber)
       << "px\"></span></span>" << Printf("%.2f", 100 * e.ber)

@@ -86,6 +86,32 @@ std::vector<ImageAttackSpec> DefaultImageAttacks() {
   return ParseImageAttackList(kDefaultImageAttacks);
 }
 
+double MeanPsnrVsTruth(Rasterizer& rasterizer, const GaussianModel& model,
+                       const std::vector<RenderCamera>& cameras,
+                       const TrainingViews& views,
+                       const std::vector<size_t>& view_ids,
+                       const std::array<float, 3>& background,
+                       const RenderAttack& attack) {
+  if (cameras.empty() || cameras.size() != view_ids.size()) {
+    Fail("eval: PSNR of " + std::to_string(cameras.size()) + " cameras for " +
+         std::to_string(view_ids.size()) + " views");
+  }
+  double sum = 0;
+  for (size_t k = 0; k < cameras.size(); ++k) {
+    ImageRGB image = RenderClamped(rasterizer, model, cameras[k], background);
+    if (attack) image = attack(image);
+    const std::shared_ptr<const ImageRGB> truth = views.Image(view_ids[k]);
+    if (image.width != truth->width || image.height != truth->height) {
+      // An attack that resizes or crops the render: the truth under the same
+      // geometry (JPEG keeps the size, so its artefacts always count).
+      sum += Psnr(image, attack(*truth));
+      continue;
+    }
+    sum += Psnr(image, *truth);
+  }
+  return sum / double(cameras.size());
+}
+
 EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
                                    const GaussianModel& raw,
                                    const GaussianModel& watermarked,
@@ -164,17 +190,26 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
                             report.view_names, decoder, &message,
                             options.background, options.thresholds, attack);
   };
+  // What each row decoded, compared with the ground truth (NaN without).
+  const auto psnr = [&](const GaussianModel& model,
+                        const std::vector<RenderCamera>& render_cameras,
+                        const RenderAttack& attack) {
+    return options.ground_truth
+               ? MeanPsnrVsTruth(rasterizer, model, render_cameras, views,
+                                 eval_views, options.background, attack)
+               : NAN;
+  };
   const auto add_row = [&](std::string model, std::string attack,
                            std::string kind, size_t gaussians,
-                           ExtractionResult result) {
+                           ExtractionResult result, double row_psnr) {
     done += int64_t(n);
     char status[96];
     std::snprintf(status, sizeof(status), "%s BER %.1f%%", attack.c_str(),
                   100 * result.ber);
     step(done, status);
     report.robustness.push_back({std::move(model), std::move(attack),
-                                 std::move(kind), gaussians,
-                                 std::move(result)});
+                                 std::move(kind), gaussians, std::move(result),
+                                 row_psnr});
   };
   for (size_t a = 0; a < options.model_attacks.size(); ++a) {
     const ModelAttackSpec& spec = options.model_attacks[a];
@@ -187,16 +222,18 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
       for (RenderCamera& c : moved) c = TransformCamera(c, spec.similarity);
     }
     add_row("watermarked", ToString(spec), "3d", attacked.size(),
-            extract(attacked, moved, {}));
+            extract(attacked, moved, {}), psnr(attacked, moved, {}));
   }
   for (const ImageAttackSpec& spec : options.image_attacks) {
     const RenderAttack attack = [spec](const ImageRGB& image) {
       return ApplyImageAttack(spec, image);
     };
     add_row("watermarked", ToString(spec), "2d", watermarked.size(),
-            extract(watermarked, cameras, attack));
+            extract(watermarked, cameras, attack),
+            psnr(watermarked, cameras, attack));
   }
-  add_row("raw", "identity", "3d", raw.size(), extract(raw, cameras, {}));
+  add_row("raw", "identity", "3d", raw.size(), extract(raw, cameras, {}),
+          psnr(raw, cameras, {}));
   if (options.show_progress) progress.Finish();
   report.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - begin)
@@ -235,6 +272,8 @@ std::string EvaluationToJson(const EvaluationReport& r) {
                     {"attack", row.attack},
                     {"kind", row.kind},
                     {"gaussians", row.num_gaussians},
+                    {"psnr", std::isnan(row.psnr) ? nlohmann::json(nullptr)
+                                                  : nlohmann::json(row.psnr)},
                     {"ber", e.ber},
                     {"bit_errors", e.bit_errors},
                     {"view_ber",
@@ -277,17 +316,19 @@ std::string EvaluationToMarkdown(const EvaluationReport& r) {
   out << "\n## Watermark (" << r.message.size()
       << " bits; present at p <= " << Format("%.0e", r.thresholds.present_p)
       << ")\n\n"
-      << "| Model | Attack | Kind | Gaussians | Aggregated BER (%) | Bit "
-         "errors | "
-         "p-value | Verdict | Single view BER mean / median / p90 (%) |\n"
-      << "|---|---|---|---:|---:|---:|---:|---|---:|\n";
+      << "| Model | Attack | Kind | Gaussians | PSNR vs truth (dB) | "
+         "Aggregated "
+         "BER (%) | Bit errors | p-value | Verdict | Single view BER mean / "
+         "median / p90 (%) |\n"
+      << "|---|---|---|---:|---:|---:|---:|---:|---|---:|\n";
   for (const RobustnessRow& row : r.robustness) {
     const ExtractionResult& e = row.extraction;
     out << "| " << row.model << " | " << row.attack << " | " << row.kind
-        << " | " << row.num_gaussians << " | " << Format("%.2f", 100 * e.ber)
-        << " | " << e.bit_errors << " | " << Format("%.3g", e.p_value) << " | "
-        << ToString(e.verdict) << " | " << Format("%.1f", 100 * e.mean_view_ber)
-        << " / " << Format("%.1f", 100 * e.median_view_ber) << " / "
+        << " | " << row.num_gaussians << " | " << Format("%.2f", row.psnr)
+        << " | " << Format("%.2f", 100 * e.ber) << " | " << e.bit_errors
+        << " | " << Format("%.3g", e.p_value) << " | " << ToString(e.verdict)
+        << " | " << Format("%.1f", 100 * e.mean_view_ber) << " / "
+        << Format("%.1f", 100 * e.median_view_ber) << " / "
         << Format("%.1f", 100 * e.p90_view_ber) << " |\n";
   }
   return out.str();

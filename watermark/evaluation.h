@@ -8,6 +8,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -89,6 +90,10 @@ struct RobustnessRow {
   size_t num_gaussians = 0;
   // Extraction against the message.
   ExtractionResult extraction;
+  // Mean PSNR (dB) over the views of what was decoded (the attacked model's
+  // renders, after the image attack) against the ground truth: a row whose
+  // scene is gone reads as such. NaN without ground truth.
+  double psnr = NAN;
 };
 
 struct EvaluationReport {
@@ -118,6 +123,16 @@ struct EvaluationReport {
 ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
                        const RenderCamera& camera,
                        const std::array<float, 3>& background);
+
+// Mean PSNR (dB) of `model`'s clamped renders from `cameras` (after
+// `attack`, when set) against views.Image(view_ids[k]), k over the cameras;
+// an attack that changes the size is compared with the truth under it.
+double MeanPsnrVsTruth(Rasterizer& rasterizer, const GaussianModel& model,
+                       const std::vector<RenderCamera>& cameras,
+                       const TrainingViews& views,
+                       const std::vector<size_t>& view_ids,
+                       const std::array<float, 3>& background,
+                       const RenderAttack& attack = {});
 
 // Evaluates on `eval_views` (indices into `views`). The raw and watermarked
 // models are rendered from the same cameras; a similarity attack moves the

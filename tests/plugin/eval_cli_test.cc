@@ -137,6 +137,27 @@ TEST(EvalCli, WritesQualityAndRobustnessReports) {
     }
   }
   EXPECT_EQ(by_attack.count("jpeg:50"), 1u);
+  // Each row's PSNR is that of what it decoded against the ground truth: the
+  // identity and raw rows are the quality table's, and every row has one.
+  EXPECT_NEAR(by_attack.at("identity")["psnr"].get<double>(),
+              vs_gt["mean"]["psnr"].get<double>(), 1e-6);
+  EXPECT_NEAR(rows.back()["psnr"].get<double>(),
+              raw_gt["mean"]["psnr"].get<double>(), 1e-6);
+  for (const auto& [attack, row] : by_attack) {
+    ASSERT_TRUE(row["psnr"].is_number()) << attack;
+  }
+  // Shuffling renders the same scene; strong noise on the means ruins it.
+  EXPECT_NEAR(by_attack.at("shuffle")["psnr"].get<double>(),
+              by_attack.at("identity")["psnr"].get<double>(), 1e-3);
+  const auto noisy = RunCommand(base + " --input_path " + s.wm +
+                                " --attacks identity,gn:0.3 --image_attacks '' "
+                                "--output_path " +
+                                (dir / "noisy"));
+  ASSERT_EQ(noisy.exit_code, 0) << noisy.output;
+  const auto n = ReadJson(dir / "noisy.json")["robustness"];
+  ASSERT_EQ(n.size(), 3u);
+  EXPECT_EQ(n[1]["attack"], "gn:0.3");
+  EXPECT_LT(n[1]["psnr"].get<double>(), n[0]["psnr"].get<double>() - 5);
 
   // The raw model against itself: infinite PSNR is written as null.
   const auto same = RunCommand(base + " --input_path " + s.raw +
