@@ -226,7 +226,7 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
   }
   for (const ImageAttackSpec& spec : options.image_attacks) {
     const RenderAttack attack = [spec](const ImageRGB& image) {
-      return ApplyImageAttack(spec, image);
+      return AttackAsDecoded(spec, image);
     };
     add_row("watermarked", ToString(spec), "2d", watermarked.size(),
             extract(watermarked, cameras, attack),

@@ -40,6 +40,14 @@ ImageRGB Jpeg(int quality, const ImageRGB& image) {
 ImageRGB Resize(double factor, const ImageRGB& image) {
   const int width = std::max(1, int(std::lround(factor * image.width)));
   const int height = std::max(1, int(std::lround(factor * image.height)));
+  return ResizeTo(image, width, height);
+}
+
+}  // namespace
+
+ImageRGB ResizeTo(const ImageRGB& image, int width, int height) {
+  if (width <= 0 || height <= 0) Fail("resize to an empty image");
+  if (width == image.width && height == image.height) return image;
   const cv::Mat in(image.height, image.width, CV_32FC3,
                    const_cast<float*>(image.data.data()));
   ImageRGB out(width, height);
@@ -50,6 +58,14 @@ ImageRGB Resize(double factor, const ImageRGB& image) {
   for (float& v : out.data) v = std::clamp(v, 0.f, 1.f);
   return out;
 }
+
+ImageRGB AttackAsDecoded(const ImageAttackSpec& spec, const ImageRGB& render) {
+  const ImageRGB attacked = ApplyImageAttack(spec, render);
+  if (spec.kind != ImageAttackKind::kResize) return attacked;
+  return ResizeTo(attacked, render.width, render.height);
+}
+
+namespace {
 
 ImageRGB Crop(double fraction, const ImageRGB& image) {
   const int width = std::max(1, int(std::lround(fraction * image.width)));

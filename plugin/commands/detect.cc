@@ -25,6 +25,7 @@
 #include "plugin/option_parser.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/extractor.h"
+#include "watermark/image_attacks.h"
 #include "watermark/image_reading.h"
 #include "watermark/message.h"
 #include "watermark/verification.h"
@@ -107,6 +108,7 @@ int RunDetect(int argc, char** argv) {
   std::string image_path, decoder_path, message, key_option, json_path;
   double present_p = VerificationThresholds().present_p;
   int max_side = 0;
+  int decode_width = 0;
   int num_threads = 0;
   OptionParser parser(
       "detect",
@@ -131,6 +133,10 @@ int RunDetect(int argc, char** argv) {
              "Downscale (INTER_AREA) images whose longer side exceeds N "
              "pixels to N (0 = decode as is; images over " +
                  std::to_string(kMaxSideAsIs) + " pixels are then refused)");
+  parser.Add("decode_width", &decode_width,
+             "Resize each image to this width (aspect kept) before decoding: "
+             "the width of the renders the model was watermarked at, for "
+             "copies shared smaller or larger (0 = decode as is)");
   parser.Add("num_threads", &num_threads, "Threads (0 = all cores)");
   parser.Add("json", &json_path, "Write the result as JSON to this file");
   if (!parser.Parse(argc, argv)) return 0;
@@ -138,6 +144,9 @@ int RunDetect(int argc, char** argv) {
     Fail("--false_positive_rate must be in (0, 0.01)");
   }
   if (max_side < 0) Fail("--max_side must be >= 0");
+  if (decode_width < 0 || decode_width > kMaxSideAsIs) {
+    Fail("--decode_width must be in [0, " + std::to_string(kMaxSideAsIs) + "]");
+  }
   if (num_threads > 0) omp_set_num_threads(num_threads);
   if (!json_path.empty()) CheckOutputFile(json_path);
 
@@ -158,7 +167,14 @@ int RunDetect(int argc, char** argv) {
   std::vector<ViewDecode> views;
   std::vector<std::pair<int, int>> sizes;
   for (const std::string& path : files) {
-    const ImageRGB image = LoadImage(path, max_side);
+    ImageRGB image = LoadImage(path, max_side);
+    if (decode_width > 0 && image.width != decode_width) {
+      // Back to the scale the watermark was embedded at (aspect kept).
+      const int height = std::max(
+          1,
+          int(std::lround(double(image.height) * decode_width / image.width)));
+      image = ResizeTo(image, decode_width, height);
+    }
     ViewDecode view;
     view.name = path;
     try {

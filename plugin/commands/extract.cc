@@ -114,7 +114,9 @@ int RunExtract(int argc, char** argv) {
              "the .transform.txt file watergs attack wrote: the cameras move "
              "with it");
   parser.Add("image_attack", &image_attack,
-             "Attack each render before decoding: jpeg:Q, resize:F, crop:F");
+             "Attack each render before decoding: jpeg:Q, resize:F, crop:F "
+             "(a resized render is decoded at the camera's size again, as an "
+             "owner decodes a smaller copy)");
   if (!parser.Parse(argc, argv)) return 0;
   if (num_views < 0 || max_views < 0) Fail("--num_views must be >= 0");
   if (split != "all" && split != "train" && split != "test") {
@@ -168,7 +170,7 @@ int RunExtract(int argc, char** argv) {
   if (!image_attack.empty()) {
     const ImageAttackSpec spec = ParseImageAttack(image_attack);
     attack = [spec](const ImageRGB& image) {
-      return ApplyImageAttack(spec, image);
+      return AttackAsDecoded(spec, image);
     };
   }
   VerificationThresholds thresholds;

@@ -21,6 +21,7 @@
 #include "tests/plugin/rendered_workspace.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/extractor.h"
+#include "watermark/image_attacks.h"
 #include "watermark/message.h"
 
 namespace watergs {
@@ -126,6 +127,22 @@ TEST(DetectCli, ReadsTheWatermarkFromRenderedImagesAsExtractDoes) {
   EXPECT_EQ(absent.output.find("verdict: watermark present"), std::string::npos)
       << absent.output;
   EXPECT_NE(absent.output.find("verdict: "), std::string::npos);
+
+  // Copies shared at half size: decoded at the render's width again they
+  // read what the renders read, within a few bits.
+  std::vector<ImageRGB> halves;
+  for (const ImageRGB& render : testing::RenderViews(wm, workspace)) {
+    halves.push_back(ResizeTo(render, 24, 18));
+  }
+  const std::string half_pngs = WritePngs(halves, dir / "half_png");
+  const auto half = RunCommand(base + " --image_path " + half_pngs +
+                               " --message " + kClaim + " --decode_width 48");
+  ASSERT_EQ(half.exit_code, 0) << half.output;
+  EXPECT_NE(half.output.find("verdict: watermark present"), std::string::npos)
+      << half.output;
+  testing::ExpectOneLineError(
+      RunCommand(base + " --image_path " + half_pngs + " --decode_width -2"),
+      "--decode_width");
 
   // Files and folders mixed, comma-separated; one line per image.
   const auto mixed =

@@ -89,6 +89,24 @@ TEST(ImageAttacks, CropKeepsTheCentredWindow) {
             image.data);
 }
 
+TEST(ImageAttacks, TheOwnerDecodesAResizedCopyAtTheRenderSize) {
+  const ImageRGB image = TestImage(40, 30);
+  // Halved then brought back: the render's size, close to it (smooth image),
+  // and exactly the bilinear enlargement of the halved copy.
+  const ImageRGB back = AttackAsDecoded(ParseImageAttack("resize:0.5"), image);
+  ASSERT_EQ(back.width, 40);
+  ASSERT_EQ(back.height, 30);
+  EXPECT_LT(MeanAbsError(back, image), 0.03);
+  const ImageRGB half = ApplyImageAttack(ParseImageAttack("resize:0.5"), image);
+  EXPECT_EQ(back.data, ResizeTo(half, 40, 30).data);
+  EXPECT_GT(MeanAbsError(back, image), 0);  // not the render itself
+  // A crop keeps its pixels (the scale is unchanged); JPEG keeps the size.
+  EXPECT_EQ(AttackAsDecoded(ParseImageAttack("crop:0.5"), image).width, 20);
+  EXPECT_EQ(AttackAsDecoded(ParseImageAttack("jpeg:50"), image).width, 40);
+  EXPECT_EQ(ResizeTo(image, 40, 30).data, image.data);
+  EXPECT_THROW(ResizeTo(image, 0, 30), Error);
+}
+
 TEST(ImageAttacks, ParsesAndRefusesBadSpecs) {
   const auto list = ParseImageAttackList("jpeg:50,resize:0.75,crop:0.6");
   ASSERT_EQ(list.size(), 3u);
