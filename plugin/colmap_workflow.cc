@@ -1,0 +1,327 @@
+#include "plugin/colmap_workflow.h"
+
+#include <omp.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <memory>
+#include <opencv2/imgcodecs.hpp>
+#include <regex>
+
+#include "gaussian/error.h"
+#include "gaussian/file_util.h"
+#include "gaussian/progress.h"
+#include "plugin/model_analyzer.h"
+#include "plugin/reconstruction_io.h"
+#include "plugin/report_evidence.h"
+#include "watermark/image_reading.h"
+
+namespace watergs {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Output of `command` (stdout and stderr) and its exit status.
+struct Captured {
+  std::string output;
+  int status = -1;
+};
+
+Captured Capture(const std::string& command) {
+  Captured c;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return c;
+  char buffer[4096];
+  while (size_t n = fread(buffer, 1, sizeof buffer, pipe))
+    c.output.append(buffer, n);
+  c.status = pclose(pipe);
+  return c;
+}
+
+// One COLMAP stage: the command, where its output goes, and how a progress
+// line reads ("Processed file [3/48]" -> 3 of 48).
+struct Stage {
+  std::string name, command, log_path;
+  std::regex progress;
+  // Steps done and total from a match (total 0: keep the stage's own).
+  std::function<std::pair<int64_t, int64_t>(const std::smatch&)> count;
+  int64_t total = 0;
+};
+
+// Runs `stage`, its output to its log, a progress bar from its lines.
+void RunStage(const Stage& stage) {
+  std::ofstream log(stage.log_path);
+  if (!log) Fail(stage.log_path + ": cannot write the stage's log");
+  log << "$ " << stage.command << "\n";
+  FILE* pipe = popen((stage.command + " 2>&1").c_str(), "r");
+  if (!pipe) Fail("reconstruct: cannot start " + stage.command);
+  // Made at the first progress line: the exhaustive matcher's total is only
+  // known then.
+  std::unique_ptr<ProgressBar> bar;
+  std::string line, last;
+  int c = 0;
+  while ((c = fgetc(pipe)) != EOF) {
+    if (c != '\n' && c != '\r') {
+      line.push_back(char(c));
+      continue;
+    }
+    if (line.empty()) continue;
+    log << line << "\n";
+    std::smatch m;
+    if (std::regex_search(line, m, stage.progress)) {
+      const auto [done, total] = stage.count(m);
+      const int64_t steps =
+          std::max<int64_t>(1, stage.total > 0 ? stage.total : total);
+      if (!bar)
+        bar =
+            std::make_unique<ProgressBar>("reconstruct: " + stage.name, steps);
+      bar->Update(std::min(done, steps));
+    }
+    last = line;
+    line.clear();
+  }
+  const int status = pclose(pipe);
+  log.flush();
+  if (status != 0) {
+    Fail("reconstruct: colmap " + stage.name + " failed (" +
+         (last.empty() ? std::string("no output") : last) + "); log " +
+         stage.log_path);
+  }
+  if (bar) bar->Finish();
+}
+
+int ToInt(const std::ssub_match& m) { return std::stoi(m.str()); }
+
+// Whether every photo has the size of the first; Error naming an unreadable
+// one.
+bool AllOneSize(const std::vector<std::string>& photos) {
+  int w = -1, h = -1;
+  bool same = true;
+  for (const std::string& path : photos) {
+    const cv::Mat image = cv::imread(path, cv::IMREAD_REDUCED_GRAYSCALE_8);
+    if (image.empty()) FailAt(path, "not a readable image");
+    // Reduced by 8: equal sizes stay equal, different ones almost surely
+    // differ.
+    if (w < 0) w = image.cols, h = image.rows;
+    same = same && image.cols == w && image.rows == h;
+  }
+  return same;
+}
+
+// Keeps the model with the most registered images as sparse/0; returns it.
+std::string KeepLargestModel(const std::string& sparse) {
+  std::string best;
+  size_t best_images = 0;
+  for (const auto& entry : fs::directory_iterator(sparse)) {
+    if (!entry.is_directory()) continue;
+    const Reconstruction r = ReadReconstruction(entry.path().string());
+    const size_t n = AnalyzeModel(r).num_reg_images;
+    if (n > best_images) best = entry.path().string(), best_images = n;
+  }
+  if (best.empty()) Fail("reconstruct: the mapper wrote no model in " + sparse);
+  const std::string zero = (fs::path(sparse) / "0").string();
+  if (fs::path(best) != fs::path(zero)) {
+    const std::string aside = (fs::path(sparse) / "0_smaller").string();
+    fs::rename(zero, aside);
+    fs::rename(best, zero);
+    fs::rename(aside, best);
+  }
+  return zero;
+}
+
+// The three COLMAP stages of `plan` for the workspace `ws` (photos in
+// ws/images, `n` of them), each with its progress line.
+std::vector<Stage> ColmapStages(const ColmapPlan& plan,
+                                const std::string& colmap_binary,
+                                const fs::path& ws, int64_t n) {
+  const std::string colmap = ShellQuote(colmap_binary);
+  const fs::path images = ws / "images";
+  const std::string db = ShellQuote((ws / "database.db").string());
+  const std::string t = std::to_string(plan.num_threads),
+                    g = plan.use_gpu ? "1" : "0";
+  const auto one_of = [](const std::smatch& m) {
+    return std::pair<int64_t, int64_t>(ToInt(m[1]), ToInt(m[2]));
+  };
+  std::vector<Stage> stages;
+  stages.push_back(
+      {"features",
+       colmap + " feature_extractor --database_path " + db + " --image_path " +
+           ShellQuote(images.string()) + " --ImageReader.single_camera " +
+           (plan.single_camera ? "1" : "0") + " --SiftExtraction.use_gpu " + g +
+           " --SiftExtraction.num_threads " + t +
+           " --SiftExtraction.max_num_features " +
+           std::to_string(plan.max_features),
+       "", std::regex(R"(Processed file \[(\d+)/(\d+)\])"), one_of, n});
+  if (plan.matcher == "sequential") {
+    stages.push_back({"matching",
+                      colmap + " sequential_matcher --database_path " + db +
+                          " --SiftMatching.use_gpu " + g +
+                          " --SiftMatching.num_threads " + t +
+                          " --SequentialMatching.overlap 10"
+                          " --SequentialMatching.loop_detection 0",
+                      "", std::regex(R"(Matching image \[(\d+)/(\d+)\])"),
+                      one_of, n});
+  } else {
+    // Blocks of images: [row/rows, column/columns].
+    stages.push_back(
+        {"matching",
+         colmap + " exhaustive_matcher --database_path " + db +
+             " --SiftMatching.use_gpu " + g + " --SiftMatching.num_threads " +
+             t,
+         "", std::regex(R"(Matching block \[(\d+)/(\d+), (\d+)/(\d+)\])"),
+         [](const std::smatch& m) {
+           const int64_t cols = ToInt(m[4]);
+           return std::pair<int64_t, int64_t>(
+               (ToInt(m[1]) - 1) * cols + ToInt(m[3]), ToInt(m[2]) * cols);
+         },
+         0});
+  }
+  stages.push_back(
+      {"mapping",
+       colmap + " mapper --database_path " + db + " --image_path " +
+           ShellQuote(images.string()) + " --output_path " +
+           ShellQuote((ws / "sparse").string()) + " --Mapper.num_threads " + t,
+       "", std::regex(R"(Registering image #\d+ \((\d+)\))"),
+       [](const std::smatch& m) {
+         return std::pair<int64_t, int64_t>(ToInt(m[1]), 0);
+       },
+       n});
+  return stages;
+}
+
+}  // namespace
+
+std::vector<std::string> ListPhotos(const std::string& image_path) {
+  return ListImageFiles(image_path, false);
+}
+
+ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
+                              bool single_camera,
+                              const ReconstructOptions& options) {
+  ColmapPlan plan;
+  plan.num_threads = num_threads;
+  plan.use_gpu = gpu_sift;
+  plan.single_camera = single_camera;
+  const int64_t pairs = int64_t(num_photos) * (num_photos - 1) / 2;
+  plan.matcher = options.matcher != "auto" ? options.matcher
+                 : num_photos <= 150       ? "exhaustive"
+                                           : "sequential";
+  const int64_t sequential_pairs =
+      int64_t(num_photos) * std::min(10, num_photos - 1);
+  plan.reasons.push_back(
+      "matcher " + plan.matcher + ": " + std::to_string(num_photos) +
+      " photos, " +
+      std::to_string(plan.matcher == "exhaustive" ? pairs : sequential_pairs) +
+      " pairs" +
+      (options.matcher != "auto" ? " (--matcher)"
+       : plan.matcher == "exhaustive"
+           ? " (every pair up to 150 photos)"
+           : " (over 150 photos: each with its 10 neighbours in name "
+             "order; take photos in walking order)"));
+  plan.max_features = options.max_features > 0 ? options.max_features
+                      : gpu_sift               ? 8192
+                                               : 2048;
+  plan.reasons.push_back(
+      "features " + std::to_string(plan.max_features) + " an image" +
+      (options.max_features > 0 ? " (--max_features)"
+       : gpu_sift               ? " (GPU SIFT)"
+                  : " (CPU: 8,192 made matching 10 s an image on 2 cores; "
+                    "2,048 registered 252 of 252 photos)"));
+  plan.reasons.push_back(std::string("SIFT on the ") +
+                         (gpu_sift ? "GPU" : "CPU") + ", " +
+                         std::to_string(num_threads) + " threads, " +
+                         (single_camera ? "one camera (photos share one size)"
+                                        : "a camera per photo size"));
+  return plan;
+}
+
+void RunReconstruction(const ReconstructOptions& o) {
+  if (o.workspace_path.empty()) Fail("reconstruct: --workspace_path is empty");
+  const fs::path ws = fs::absolute(o.workspace_path);
+  const fs::path images = ws / "images";
+  const fs::path photos_dir =
+      fs::absolute(o.image_path.empty() ? images : fs::path(o.image_path));
+  const Captured version = Capture(ShellQuote(o.colmap) + " -h");
+  if (version.output.find("COLMAP") == std::string::npos) {
+    Fail("reconstruct: no COLMAP binary `" + o.colmap +
+         "` (install it: apt-get install colmap, or give --colmap PATH)");
+  }
+  const bool cuda_colmap =
+      version.output.find("with CUDA") != std::string::npos;
+  const std::vector<std::string> photos = ListPhotos(photos_dir.string());
+  if (photos.size() < 3) {
+    FailAt(photos_dir.string(), "holds " + std::to_string(photos.size()) +
+                                    " photos (.jpg/.png); a reconstruction "
+                                    "needs at least 3, overlapping");
+  }
+  // Every photo readable before anything is written.
+  const bool single_camera = AllOneSize(photos);
+  fs::create_directories(ws / ".reconstruct");
+  if (!fs::exists(images)) {
+    fs::create_directory_symlink(photos_dir, images);
+  } else if (!fs::equivalent(images, photos_dir)) {
+    FailAt(images.string(), "exists and is not --image_path " +
+                                photos_dir.string() +
+                                ": use another workspace");
+  }
+  const int threads = o.num_threads > 0 ? o.num_threads : omp_get_num_procs();
+  const bool gpu = cuda_colmap && fs::exists("/dev/nvidia0");
+  const ColmapPlan plan =
+      PlanReconstruction(int(photos.size()), threads, gpu, single_camera, o);
+  std::vector<Stage> stages =
+      ColmapStages(plan, o.colmap, ws, int64_t(photos.size()));
+
+  // Stages done before must have run these settings: a resumed run does not
+  // mix features or matches of two settings. Checked before any work.
+  std::vector<bool> done(stages.size(), false);
+  for (size_t k = 0; k < stages.size(); ++k) {
+    const fs::path marker = ws / ".reconstruct" / (stages[k].name + ".done");
+    stages[k].log_path =
+        (ws / ".reconstruct" / (stages[k].name + ".log")).string();
+    if (!fs::exists(marker)) continue;
+    const std::vector<uint8_t> bytes = ReadFileBytes(marker.string());
+    if (std::string(bytes.begin(), bytes.end()) != stages[k].command + "\n") {
+      FailAt(marker.string(), "was done with other settings: remove " +
+                                  (ws / ".reconstruct").string() +
+                                  " and the database to start over");
+    }
+    done[k] = true;
+  }
+  for (const std::string& reason : plan.reasons) {
+    std::printf("reconstruct: %s\n", reason.c_str());
+  }
+  std::fflush(stdout);
+  for (size_t k = 0; k < stages.size(); ++k) {
+    const Stage& stage = stages[k];
+    const fs::path marker = ws / ".reconstruct" / (stage.name + ".done");
+    if (done[k]) {
+      std::printf("reconstruct: %s done before, kept\n", stage.name.c_str());
+      continue;
+    }
+    if (stage.name == "mapping") {
+      // A mapper stopped half way leaves partial models: start it afresh.
+      fs::remove_all(ws / "sparse");
+      fs::create_directories(ws / "sparse");
+    }
+    RunStage(stage);
+    AtomicWriteFile(marker.string(), stage.command + "\n");
+  }
+
+  const std::string model = KeepLargestModel((ws / "sparse").string());
+  const ModelSummary s = AnalyzeModel(ReadReconstruction(model));
+  std::printf(
+      "reconstruct: %zu of %zu photos registered, %zu points, mean "
+      "reprojection error %.2f px -> %s\n",
+      s.num_reg_images, photos.size(), s.num_points3D,
+      s.mean_reprojection_error, model.c_str());
+  if (double(s.num_reg_images) < o.min_registered_fraction * photos.size()) {
+    Fail("reconstruct: only " + std::to_string(s.num_reg_images) + " of " +
+         std::to_string(photos.size()) +
+         " photos registered: take photos with more overlap, or try "
+         "--matcher exhaustive / more --max_features");
+  }
+}
+
+}  // namespace watergs

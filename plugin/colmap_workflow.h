@@ -1,0 +1,61 @@
+// From a folder of photos to a COLMAP workspace, with COLMAP's own binary:
+// feature extraction, matching and mapping, with settings chosen for the
+// photo count and the machine, progress with an ETA per stage, and resume
+// from the first stage not finished. The result is the layout every watergs
+// command reads: <workspace>/images (the photos), <workspace>/sparse/0 (the
+// largest model the mapper wrote), <workspace>/database.db.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace watergs {
+
+// Settings a run uses, and why (printed, and in docs/reconstruct.md).
+struct ColmapPlan {
+  // SIFT features an image (SiftExtraction.max_num_features).
+  int max_features = 2048;
+  // "exhaustive" or "sequential".
+  std::string matcher = "exhaustive";
+  // Threads for every stage.
+  int num_threads = 2;
+  // SIFT on the GPU (a CUDA-built colmap and a visible GPU).
+  bool use_gpu = false;
+  // One camera for all photos (they share one size).
+  bool single_camera = true;
+  // One line per choice: "matcher exhaustive: 48 photos, 1,128 pairs".
+  std::vector<std::string> reasons;
+};
+
+struct ReconstructOptions {
+  std::string image_path, workspace_path;
+  // The COLMAP binary (a name on PATH or a path).
+  std::string colmap = "colmap";
+  // 0: chosen by PlanReconstruction.
+  int max_features = 0;
+  // "auto", "exhaustive" or "sequential".
+  std::string matcher = "auto";
+  // 0: all cores.
+  int num_threads = 0;
+  // Fewest registered photos accepted, as a fraction of the photos.
+  double min_registered_fraction = 0.5;
+};
+
+// The photo files of `image_path` (.jpg/.jpeg/.png, any case, sorted).
+std::vector<std::string> ListPhotos(const std::string& image_path);
+
+// Settings for `num_photos` photos on `num_threads` threads: matcher
+// exhaustive up to 150 photos (11,175 pairs), sequential (overlap 10) beyond;
+// 2,048 features an image on the CPU (8,192 with GPU SIFT); options given
+// override the choice.
+ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
+                              bool single_camera,
+                              const ReconstructOptions& options);
+
+// Runs the stages not yet done (markers in <workspace>/.reconstruct/), then
+// keeps the largest model as sparse/0. Error (one line) for a missing colmap
+// binary, fewer than 3 readable photos, a stage that fails (its log named)
+// or a model that registers too few photos.
+void RunReconstruction(const ReconstructOptions& options);
+
+}  // namespace watergs

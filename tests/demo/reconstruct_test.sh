@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# `watergs reconstruct` on the demo scene's 48 photos with COLMAP's binary: the model registers
+# (nearly) every photo at sub-pixel reprojection error, `train` accepts the workspace, a second
+# run resumes (every stage kept, the same model), and bad input fails in one line naming it.
+set -euo pipefail
+bin="${WATERGS_BIN:?WATERGS_BIN: the watergs CLI}"
+root="$(cd "$(dirname "$0")/../.." && pwd)"
+photos="$root/datasets_scripts/demo_scene/images"
+command -v colmap > /dev/null || { echo "reconstruct_test: colmap not installed (scripts/install_deps.sh)"; exit 77; }
+out="$(mktemp -d)"
+trap 'rm -rf "$out"' EXIT
+fail() { echo "reconstruct_test: FAIL: $*" >&2; exit 1; }
+one_line_error() {  # WHAT COMMAND...: non-zero exit, one line naming WHAT
+  local what=$1; shift
+  if "$@" > "$out/err.log" 2>&1; then fail "accepted: $*"; fi
+  grep -q -- "$what" "$out/err.log" || fail "error does not name $what: $(cat "$out/err.log")"
+  [ "$(wc -l < "$out/err.log")" -le 1 ] || fail "more than one line: $(cat "$out/err.log")"
+}
+
+ws="$out/ws"
+"$bin" reconstruct --image_path "$photos" --workspace_path "$ws" --max_features 1024 \
+  --matcher sequential > "$out/run1.log" 2> "$out/run1.err" || fail "reconstruct: $(tail -3 "$out/run1.log" "$out/run1.err")"
+cat "$out/run1.log"
+line=$(grep "photos registered" "$out/run1.log") || fail "no summary line"
+registered=$(echo "$line" | sed -E 's/.*: ([0-9]+) of ([0-9]+) photos.*/\1/')
+error=$(echo "$line" | sed -E 's/.*reprojection error ([0-9.]+) px.*/\1/')
+[ "$registered" -ge 45 ] || fail "only $registered of 48 photos registered"
+awk -v e="$error" 'BEGIN { exit !(e > 0 && e < 1.0) }' || fail "mean reprojection error $error px"
+[ -f "$ws/sparse/0/images.bin" ] || fail "no sparse/0"
+[ -L "$ws/images" ] || fail "images/ does not link the photos"
+"$bin" train --workspace_path "$ws" --output_path "$out/train" --iterations 30 \
+  --downscale 4 --num_threads 2 > "$out/train.log" 2>&1 || fail "train refused the workspace: $(tail -2 "$out/train.log")"
+[ -f "$out/train/point_cloud.ply" ] || fail "train wrote no model"
+
+# Resume: every stage kept, the same model.
+sum1=$(md5sum < "$ws/sparse/0/points3D.bin")
+"$bin" reconstruct --image_path "$photos" --workspace_path "$ws" --max_features 1024 \
+  --matcher sequential > "$out/run2.log" 2>&1 || fail "second run: $(tail -2 "$out/run2.log")"
+[ "$(grep -c "done before, kept" "$out/run2.log")" -eq 3 ] || fail "stages redone: $(cat "$out/run2.log")"
+[ "$(md5sum < "$ws/sparse/0/points3D.bin")" = "$sum1" ] || fail "the model changed on resume"
+# Other settings on a started workspace: refused, not mixed.
+one_line_error "other settings" "$bin" reconstruct --image_path "$photos" --workspace_path "$ws" \
+  --max_features 512 --matcher sequential
+
+# Bad input.
+mkdir -p "$out/two"
+cp "$photos/view_000.jpg" "$photos/view_001.jpg" "$out/two/"
+one_line_error "$out/two" "$bin" reconstruct --image_path "$out/two" --workspace_path "$out/ws2"
+printf 'not a jpeg' > "$out/two/view_002.jpg"
+one_line_error "$out/two/view_002.jpg" "$bin" reconstruct --image_path "$out/two" \
+  --workspace_path "$out/ws5"
+[ ! -e "$out/ws5" ] || fail "a refused run wrote the workspace"
+one_line_error "no COLMAP binary" "$bin" reconstruct --image_path "$photos" \
+  --workspace_path "$out/ws3" --colmap "$out/no-colmap"
+one_line_error "$out/none" "$bin" reconstruct --image_path "$out/none" --workspace_path "$out/ws4"
+echo "reconstruct_test: passed ($registered of 48 registered, $error px)"
