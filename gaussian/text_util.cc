@@ -1,6 +1,7 @@
 // Number parsing shared by the option and attack parsers.
 #include "gaussian/text_util.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -16,6 +17,17 @@ std::optional<double> ParseFiniteDouble(const std::string& text) {
   }
   if (used != text.size() || !std::isfinite(value)) return std::nullopt;
   return value;
+}
+
+std::vector<std::string> SplitList(const std::string& text, char sep) {
+  std::vector<std::string> entries;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t end = std::min(text.find(sep, start), text.size());
+    if (end > start) entries.push_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  return entries;
 }
 
 }  // namespace watergs

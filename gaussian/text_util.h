@@ -5,6 +5,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace watergs {
 
@@ -12,5 +13,8 @@ namespace watergs {
 // syntax: "0.5", "-1e-3", " 2" with leading blanks); nullopt otherwise
 // ("", "1x", "nan", "inf", "1e999").
 std::optional<double> ParseFiniteDouble(const std::string& text);
+
+// The non-empty entries of a `sep`-separated list ("a,,b" -> {"a", "b"}).
+std::vector<std::string> SplitList(const std::string& text, char sep = ',');
 
 }  // namespace watergs

@@ -9,13 +9,13 @@ namespace watergs {
 
 EmbedInputs LoadEmbedInputs(const std::string& input_path,
                             const std::string& decoder_path,
-                            const std::string& message,
+                            const std::string& message, const std::string& key,
                             const WorkspaceOptions& workspace, Device device,
                             bool eval) {
   EmbedInputs in;
   in.ply = ReadPly(input_path);
   in.decoder = LoadBitDecoder(decoder_path, device);
-  in.message = ParseMessage(message, in.decoder->NumBits());
+  in.message = ApplyKey(ParseMessage(message, in.decoder->NumBits()), key);
   in.workspace = std::make_unique<Workspace>(Workspace::Open(workspace));
   in.views = std::make_unique<WorkspaceViews>(*in.workspace);
   in.train_views = in.workspace->TrainViews(eval);

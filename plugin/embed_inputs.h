@@ -24,7 +24,8 @@ struct EmbedInputs {
   PlyData ply;
   // The frozen decoder on the command's device.
   std::unique_ptr<BitDecoder> decoder;
-  // The owner's message, decoder->NumBits() long.
+  // The bits embedded: the owner's message, decoder->NumBits() long, XOR
+  // the key's stream when a key is given (ApplyKey).
   Bits message;
   // The workspace (held by pointer: `views` refers to it) and its views.
   std::unique_ptr<Workspace> workspace;
@@ -33,11 +34,12 @@ struct EmbedInputs {
   std::vector<size_t> train_views;
 };
 
-// Reads the PLY, the decoder, the message and the workspace, in that order;
+// Reads the PLY, the decoder, the message (keyed by `key`, the resolved key,
+// when not empty) and the workspace, in that order;
 // throws Error naming the file at fault.
 EmbedInputs LoadEmbedInputs(const std::string& input_path,
                             const std::string& decoder_path,
-                            const std::string& message,
+                            const std::string& message, const std::string& key,
                             const WorkspaceOptions& workspace, Device device,
                             bool eval);
 

@@ -92,6 +92,22 @@ std::string ImgTag(const ImageRGB& image, const std::string& id,
          "\" src=\"data:image/png;base64," + Base64(EncodePng(image)) + "\">";
 }
 
+// The claim's key: its fingerprint, or why an unkeyed claim must have been
+// fixed before the suspect was read.
+std::string KeyRow(const std::string& fingerprint) {
+  if (fingerprint.empty()) {
+    return "<tr><th>Owner's key</th><td>none: the bits claimed are the "
+           "message as typed. The false-positive rate below holds only for a "
+           "claim fixed before the model was read; a claim chosen after "
+           "reading it (such as the message read from it) has "
+           "none.</td></tr>\n";
+  }
+  return "<tr><th>Owner's key</th><td>SHA-256 <code>" + fingerprint +
+         "</code>: the bits claimed are the message XOR a stream drawn from "
+         "the key, a random pattern fixed when the key was drawn (compare the "
+         "fingerprint with the one registered at embedding)</td></tr>\n";
+}
+
 // The claimed bits with the ones read wrong marked.
 std::string BitRow(const Bits& read, const Bits& expected) {
   std::string out = "<span class=\"bits\">";
@@ -387,7 +403,7 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
     << "<tr><th>Claimed message</th><td><code>" << HtmlEscape(r.message_text)
     << "</code> = hex <code>" << BitsToHex(claim.expected)
     << "</code></td></tr>\n"
-    << "<tr><th>Read from the model</th><td>"
+    << KeyRow(r.key_fingerprint) << "<tr><th>Read from the model</th><td>"
     << BitRow(claim.recovered, claim.expected)
     << "<br><span class=\"small\">bits read wrong are marked red</span>"
     << "</td></tr>\n"
@@ -412,9 +428,19 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
   if (k_max >= 0) {
     h << " (at most " << k_max << " of " << bits << " bits wrong)";
   }
-  h << ", so a model without this watermark is wrongly declared to carry it "
-       "with a chance of at most "
-    << Chance(fpr) << ". Above p = " << Scientific(claim.thresholds.absent_p)
+  h << (r.key_fingerprint.empty()
+            ? ", so a model without this watermark is wrongly declared to "
+              "carry it with a chance of at most "
+            : ", so, over the owner's choice of key, a model without this "
+              "watermark is wrongly declared to carry it with a chance of at "
+              "most ")
+    << Chance(fpr)
+    << (r.key_fingerprint.empty()
+            ? ", provided the claim was fixed before the model was read "
+              "(without a key, measured on unmarked scenes, a fixed message "
+              "can pass more often: docs/verification.md)"
+            : "")
+    << ". Above p = " << Scientific(claim.thresholds.absent_p)
     << " the verdict is &lsquo;absent&rsquo;, in between "
        "&lsquo;inconclusive&rsquo;.</td></tr>\n"
     << "<tr><th>Decoder</th><td><code>" << HtmlEscape(r.decoder.path)
@@ -575,6 +601,7 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
   nlohmann::json data;
   data["generator"] = r.generator;
   data["message"] = r.message_text;
+  data["key_fingerprint"] = r.key_fingerprint;
   nlohmann::json files_json = nlohmann::json::array();
   for (const ReportFile& f : files) {
     files_json.push_back({{"role", f.role},

@@ -60,6 +60,8 @@ struct OwnershipReport {
   std::string generator;
   // The claimed message as the owner typed it ("text:WGS-26").
   std::string message_text;
+  // SHA-256 of the owner's key (KeyFingerprint); empty: unkeyed claim.
+  std::string key_fingerprint;
   // The decoder and the models (raw, watermarked, suspect copies).
   ReportFile decoder;
   std::vector<ReportFile> files;

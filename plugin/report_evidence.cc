@@ -76,6 +76,13 @@ std::string ShellQuote(const std::string& arg) {
   return out + "'";
 }
 
+std::string ClaimOptions(const std::string& message_text,
+                         const std::string& key_option) {
+  std::string options = " --message " + ShellQuote(message_text);
+  if (!key_option.empty()) options += " --key " + ShellQuote(key_option);
+  return options;
+}
+
 std::string CommandLine(int argc, char** argv) {
   std::string line = "watergs";
   for (int i = 0; i < argc; ++i) line += " " + ShellQuote(argv[i]);
@@ -101,6 +108,9 @@ OwnershipReport CollectOwnershipReport(
   OwnershipReport r;
   r.generator = request.generator;
   r.message_text = request.message_text;
+  if (!request.key_option.empty()) {
+    r.key_fingerprint = KeyFingerprint(ResolveKey(request.key_option));
+  }
   r.watermarked_path = request.watermarked_path;
   r.workspace_path = request.workspace.workspace_path;
   r.workspace_views = workspace_views;
@@ -167,8 +177,8 @@ OwnershipReport CollectOwnershipReport(
     if (request.workspace.downscale != 1) {
       common += " --downscale " + std::to_string(request.workspace.downscale);
     }
-    common += " --decoder " + ShellQuote(request.decoder_path) + " --message " +
-              ShellQuote(request.message_text);
+    common += " --decoder " + ShellQuote(request.decoder_path) +
+              ClaimOptions(request.message_text, request.key_option);
     if (!view_option->empty()) common += " " + *view_option;
     if (request.background != "0,0,0") {
       common += " --background " + ShellQuote(request.background);

@@ -27,6 +27,8 @@ struct ReportRequest {
   std::vector<std::string> suspect_paths;
   // The claimed message as typed.
   std::string message_text;
+  // --key as typed ("" unkeyed; file:PATH or the key itself).
+  std::string key_option;
   // Workspace options as given (workspace, sparse path, downscale).
   WorkspaceOptions workspace;
   // --background as typed.
@@ -44,6 +46,11 @@ struct ReportRequest {
 // extract's even spread of N; nullopt for another selection.
 std::optional<std::string> ExtractViewsOption(const std::vector<size_t>& views,
                                               size_t num_views);
+
+// " --message M" and, when keyed, " --key K" as typed, shell-quoted: the
+// claim in the reproducing commands.
+std::string ClaimOptions(const std::string& message_text,
+                         const std::string& key_option);
 
 // `arg` quoted for a POSIX shell where it needs quoting.
 std::string ShellQuote(const std::string& arg);

@@ -1,6 +1,9 @@
 #include "watermark/message.h"
 
+#include <openssl/sha.h>
+
 #include <cctype>
+#include <fstream>
 
 #include "gaussian/error.h"
 
@@ -103,6 +106,65 @@ Bits ParseMessage(const std::string& text, int num_bits) {
     bits.push_back(padding[i]);
   }
   return bits;
+}
+
+Bits KeyStream(const std::string& key, int num_bits) {
+  if (num_bits <= 0) Fail("key stream length must be positive");
+  if (key.empty()) Fail("the key is empty");
+  Bits bits;
+  bits.reserve(num_bits);
+  const std::string prefix = std::string("watergs-key-v1") + '\0' + key;
+  for (uint32_t block = 0; static_cast<int>(bits.size()) < num_bits; ++block) {
+    std::string input = prefix;
+    for (int shift = 24; shift >= 0; shift -= 8) {
+      input.push_back(static_cast<char>((block >> shift) & 0xff));
+    }
+    unsigned char digest[SHA256_DIGEST_LENGTH];
+    SHA256(reinterpret_cast<const unsigned char*>(input.data()), input.size(),
+           digest);
+    for (int i = 0; i < 8 * SHA256_DIGEST_LENGTH &&
+                    static_cast<int>(bits.size()) < num_bits;
+         ++i) {
+      bits.push_back((digest[i / 8] >> (7 - i % 8)) & 1);
+    }
+  }
+  return bits;
+}
+
+Bits ApplyKey(const Bits& message, const std::string& key) {
+  if (key.empty() || message.empty()) return message;
+  const Bits stream = KeyStream(key, static_cast<int>(message.size()));
+  Bits keyed(message.size());
+  for (size_t i = 0; i < message.size(); ++i) {
+    keyed[i] = (message[i] != 0) != (stream[i] != 0);
+  }
+  return keyed;
+}
+
+std::string KeyFingerprint(const std::string& key) {
+  if (key.empty()) Fail("the key is empty");
+  unsigned char digest[SHA256_DIGEST_LENGTH];
+  SHA256(reinterpret_cast<const unsigned char*>(key.data()), key.size(),
+         digest);
+  static const char* kDigits = "0123456789abcdef";
+  std::string hex;
+  for (unsigned char byte : digest) {
+    hex.push_back(kDigits[byte >> 4]);
+    hex.push_back(kDigits[byte & 15]);
+  }
+  return hex;
+}
+
+std::string ResolveKey(const std::string& key_option) {
+  if (!StartsWith(key_option, "file:")) return key_option;
+  const std::string path = key_option.substr(5);
+  std::ifstream in(path);
+  if (!in) Fail(path + ": cannot read the key file");
+  std::string line;
+  std::getline(in, line);
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  if (line.empty()) Fail(path + ": the key file's first line is empty");
+  return line;
 }
 
 std::string BitsToString(const Bits& bits) {

@@ -26,7 +26,7 @@ namespace watergs {
 namespace {
 
 struct ConcatArgs {
-  std::string input_path, output_path, decoder_path, message;
+  std::string input_path, output_path, decoder_path, message, key_option;
   WorkspaceOptions workspace;
   int64_t iterations = 2000;
   double gamma = 0.3, beta = 0.2, learning_rate = 1e-3;
@@ -83,6 +83,7 @@ void AddOptions(OptionParser* parser, ConcatArgs* a) {
   parser->AddRequired("decoder", &a->decoder_path, "Decoder weights file");
   parser->AddRequired("message", &a->message,
                       std::string("Message: ") + kMessageFormats);
+  parser->Add("key", &a->key_option, kKeyHelp);
   parser->AddRequired("output_path", &a->output_path, "Watermarked PLY");
   parser->Add("iterations", &a->iterations, "Encoder training iterations");
   parser->Add("gamma", &a->gamma, "Weight of the message loss");
@@ -126,7 +127,8 @@ int RunConcatEmbed(int argc, char** argv) {
   const ShTarget target = ParseShTarget(a.attributes);
 
   EmbedInputs in = LoadEmbedInputs(a.input_path, a.decoder_path, a.message,
-                                   a.workspace, parser.device(), a.eval);
+                                   ResolveKey(a.key_option), a.workspace,
+                                   parser.device(), a.eval);
   const GaussianModel& raw = in.ply.model;
   ConcatEncoder encoder(target, raw.sh_degree, in.decoder->NumBits(), a.hidden,
                         static_cast<uint32_t>(a.seed));

@@ -104,7 +104,7 @@ std::string Percent(double fraction) {
 }
 
 int RunDetect(int argc, char** argv) {
-  std::string image_path, decoder_path, message, json_path;
+  std::string image_path, decoder_path, message, key_option, json_path;
   double present_p = VerificationThresholds().present_p;
   int max_side = 0;
   int num_threads = 0;
@@ -124,6 +124,7 @@ int RunDetect(int argc, char** argv) {
                      "sorted by name");
   parser.Add("message", &message,
              std::string("Claimed message: ") + kMessageFormats);
+  parser.Add("key", &key_option, kKeyHelp);
   parser.Add("false_positive_rate", &present_p,
              "p-value at or below which the watermark is declared present");
   parser.Add("max_side", &max_side,
@@ -145,7 +146,10 @@ int RunDetect(int argc, char** argv) {
       LoadBitDecoder(decoder_path, parser.device());
   const int num_bits = decoder->NumBits();
   Bits expected;
-  if (!message.empty()) expected = ParseMessage(message, num_bits);
+  if (!message.empty()) {
+    expected =
+        ApplyKey(ParseMessage(message, num_bits), ResolveKey(key_option));
+  }
   VerificationThresholds thresholds;
   thresholds.present_p = present_p;
 

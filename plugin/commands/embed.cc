@@ -43,6 +43,7 @@ constexpr double kDefaultMargin = 3.0;
 
 struct EmbedArgs {
   std::string input_path, output_path, decoder_path, message, report_path;
+  std::string key_option;
   WorkspaceOptions workspace;
   // Defaults: the settings measured best on the demo and offline scenes at
   // 2 cores (docs/history.md, "One view is enough"): whole frames, half the
@@ -154,6 +155,7 @@ void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
   request.watermarked_path = a.output_path;
   request.decoder_path = a.decoder_path;
   request.message_text = a.message;
+  request.key_option = a.key_option;
   request.workspace = a.workspace;
   request.background = a.background;
   request.generator = std::string("watergs ") + WATERGS_VERSION;
@@ -172,8 +174,8 @@ void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
   if (a.workspace.downscale != 1) {
     report_command += " --downscale " + std::to_string(a.workspace.downscale);
   }
-  report_command += " --decoder " + ShellQuote(a.decoder_path) + " --message " +
-                    ShellQuote(a.message) + " --output_path " +
+  report_command += " --decoder " + ShellQuote(a.decoder_path) +
+                    ClaimOptions(a.message, a.key_option) + " --output_path " +
                     ShellQuote(a.report_path);
   if (a.background != "0,0,0") {
     report_command += " --background " + ShellQuote(a.background);
@@ -240,6 +242,7 @@ int RunEmbed(int argc, char** argv) {
   parser.AddRequired("decoder", &a.decoder_path, "Decoder weights file");
   parser.AddRequired("message", &a.message,
                      std::string("Message: ") + kMessageFormats);
+  parser.Add("key", &a.key_option, kKeyHelp);
   parser.AddRequired("output_path", &a.output_path, "Watermarked PLY");
   parser.Add("iterations", &a.iterations, "Fine-tuning iterations");
   parser.Add("gamma", &a.gamma, "Weight of the message loss");
@@ -339,8 +342,20 @@ int RunEmbed(int argc, char** argv) {
   options.checkpoint_every = a.checkpoint_every;
   options.show_progress = true;
 
-  EmbedInputs in = LoadEmbedInputs(a.input_path, a.decoder_path, a.message,
+  const std::string key = ResolveKey(a.key_option);
+  EmbedInputs in = LoadEmbedInputs(a.input_path, a.decoder_path, a.message, key,
                                    a.workspace, parser.device(), a.eval);
+  if (!key.empty()) {
+    std::printf(
+        "embed: keyed message; key SHA-256 %s (register it now: a claim "
+        "is evidence only if fixed before the suspect is read)\n",
+        KeyFingerprint(key).c_str());
+  } else {
+    std::printf(
+        "embed: unkeyed message: its false-positive rate holds only for a "
+        "claim fixed before the suspect is read, and text messages share bits "
+        "(--key makes it exact: docs/verification.md)\n");
+  }
   PlyData& ply = in.ply;
   const BitDecoder* decoder = in.decoder.get();
   const Bits& message = in.message;

@@ -78,6 +78,7 @@ std::unique_ptr<Lpips> LoadLpips(const std::string& path, bool given,
 
 int RunEval(int argc, char** argv) {
   std::string raw_path, input_path, decoder_path, message, output_path;
+  std::string key_option;
   std::string report_path;
   std::string model_attacks = kDefaultModelAttacks;
   std::string image_attacks = kDefaultImageAttacks;
@@ -109,6 +110,7 @@ int RunEval(int argc, char** argv) {
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
   parser.AddRequired("message", &message,
                      std::string("Embedded message: ") + kMessageFormats);
+  parser.Add("key", &key_option, kKeyHelp);
   parser.Add("output_path", &output_path,
              "Report prefix: writes <prefix>.json and <prefix>.md");
   parser.Add("attacks", &model_attacks,
@@ -165,7 +167,8 @@ int RunEval(int argc, char** argv) {
   const PlyData watermarked = ReadPly(input_path);
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(decoder_path, parser.device());
-  const Bits bits = ParseMessage(message, decoder->NumBits());
+  const Bits bits = ApplyKey(ParseMessage(message, decoder->NumBits()),
+                             ResolveKey(key_option));
   // What is left out, said once when every input has been accepted (an
   // error stays the only line).
   std::vector<std::string> notices;
@@ -218,6 +221,7 @@ int RunEval(int argc, char** argv) {
     request.watermarked_path = input_path;
     request.decoder_path = decoder_path;
     request.message_text = message;
+    request.key_option = key_option;
     request.workspace = workspace_options;
     request.background = background;
     request.generator = std::string("watergs ") + WATERGS_VERSION;

@@ -64,7 +64,7 @@ SimilarityTransform ParseSceneTransform(const std::string& value) {
 }
 
 int RunExtract(int argc, char** argv) {
-  std::string input_path, decoder_path, message, json_path;
+  std::string input_path, decoder_path, message, key_option, json_path;
   std::string scene_transform, image_attack;
   std::string background = "0,0,0";
   WorkspaceOptions workspace_options;
@@ -93,6 +93,7 @@ int RunExtract(int argc, char** argv) {
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
   parser.Add("message", &message,
              std::string("Claimed message: ") + kMessageFormats);
+  parser.Add("key", &key_option, kKeyHelp);
   parser.Add("num_views", &num_views,
              "Render N free viewpoints between the cameras (0 = the "
              "workspace's cameras)");
@@ -133,7 +134,10 @@ int RunExtract(int argc, char** argv) {
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(decoder_path, parser.device());
   Bits expected;
-  if (!message.empty()) expected = ParseMessage(message, decoder->NumBits());
+  const std::string key = ResolveKey(key_option);
+  if (!message.empty()) {
+    expected = ApplyKey(ParseMessage(message, decoder->NumBits()), key);
+  }
   workspace_options.images_optional = true;  // only the cameras are rendered
   const Workspace workspace = Workspace::Open(workspace_options);
   const WorkspaceViews views(workspace);
@@ -180,6 +184,12 @@ int RunExtract(int argc, char** argv) {
               BitsToHex(r.recovered).c_str());
   std::printf("extract: recovered bits        %s\n",
               BitsToString(r.recovered).c_str());
+  if (!key.empty()) {
+    // What the owner typed, if the model carries this key's watermark.
+    std::printf("extract: message under the key hex %s (key SHA-256 %s)\n",
+                BitsToHex(ApplyKey(r.recovered, key)).c_str(),
+                KeyFingerprint(key).c_str());
+  }
   if (r.has_expected) {
     std::printf("extract: expected bits         %s\n",
                 BitsToString(r.expected).c_str());

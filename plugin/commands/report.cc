@@ -74,6 +74,7 @@ int RunReport(int argc, char** argv) {
   parser.AddRequired("decoder", &request.decoder_path, "Decoder weights file");
   parser.AddRequired("message", &request.message_text,
                      std::string("Claimed message: ") + kMessageFormats);
+  parser.Add("key", &request.key_option, kKeyHelp);
   parser.AddRequired("output_path", &output_path, "The HTML file to write");
   parser.Add("copies", &copies,
              "Suspect copies (e.g. files from watergs attack), "
@@ -144,7 +145,9 @@ int RunReport(int argc, char** argv) {
   }
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(request.decoder_path, parser.device());
-  const Bits bits = ParseMessage(request.message_text, decoder->NumBits());
+  const Bits bits =
+      ApplyKey(ParseMessage(request.message_text, decoder->NumBits()),
+               ResolveKey(request.key_option));
   std::unique_ptr<Lpips> lpips;
   if (!lpips_path.empty()) {
     lpips = Lpips::Load(lpips_path);

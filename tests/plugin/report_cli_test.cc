@@ -100,7 +100,10 @@ TEST(ReportCli, ClaimAndEveryRowAreWhatTheListedCommandsPrint) {
                 .exit_code,
             0);
   // The claim: what the decoder reads from the watermarked stand-in (all 16
-  // bits right, p = 2^-16), present at a false-positive rate of 1e-4.
+  // bits right, p = 2^-16), present at a false-positive rate of 1e-4. This
+  // checks the page's mechanics only: a claim read off the suspect first has
+  // no false-positive rate at all (docs/verification.md), which is what the
+  // page's "Owner's key" row tells a reader of an unkeyed claim.
   const std::string common = " --workspace_path " + s.ws + " --decoder " +
                              s.decoder + " --max_views 6 --num_threads 2";
   const auto read = RunCommand(WatergsBin() + " extract --input_path " + q_wm +
@@ -121,6 +124,8 @@ TEST(ReportCli, ClaimAndEveryRowAreWhatTheListedCommandsPrint) {
   const std::string html = ReadText(page);
   ASSERT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
   EXPECT_NE(html.find("<div class=\"verdict\">watermark present</div>"),
+            std::string::npos);
+  EXPECT_NE(html.find("claim fixed before the model was read"),
             std::string::npos);
   // Self-contained: 2 views x 3 images, all data URIs; nothing fetched, no
   // script but the JSON block.

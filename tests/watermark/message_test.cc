@@ -1,8 +1,11 @@
 #include "watermark/message.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <random>
 
 #include "gaussian/error.h"
@@ -168,6 +171,63 @@ TEST(Verification, MaxErrorsForPresenceMatchesTheExactCounts) {
   const double p7 = BinomialTailPValue(48 - 7, 48);
   EXPECT_EQ(MaxErrorsForPresence(48, p7), 7);
   EXPECT_EQ(MaxErrorsForPresence(48, std::nextafter(p7, 0.0)), 6);
+}
+
+// Expected streams computed with Python's hashlib (an independent SHA-256):
+// hashlib.sha256(b"watergs-key-v1\0" + key + block.to_bytes(4, "big")).
+TEST(MessageKey, KeyStreamIsTheDocumentedSha256Stream) {
+  EXPECT_EQ(BitsToString(KeyStream("owner secret", 48)),
+            "110101010110010110110000111001101001010110111100");
+  // Bits 250..299 cross from block 0 into block 1.
+  EXPECT_EQ(BitsToString(KeyStream("k", 300)).substr(250),
+            "01000001000001100001001001010001101011000010100101");
+}
+
+TEST(MessageKey, ApplyingAKeyTwiceGivesTheMessageAndNoKeyChangesNothing) {
+  const Bits message = ParseMessage("text:WGS-26", 48);
+  const Bits keyed = ApplyKey(message, "owner secret");
+  EXPECT_GT(HammingDistance(keyed, message), 10);
+  EXPECT_EQ(ApplyKey(keyed, "owner secret"), message);
+  EXPECT_EQ(ApplyKey(message, ""), message);
+  EXPECT_NE(ApplyKey(message, "owner secreT"), keyed);
+  EXPECT_THROW(KeyStream("", 48), Error);
+}
+
+TEST(MessageKey, KeyedClaimsAreFairCoinsPerBit) {
+  // Over many keys every bit of a fixed (very unbalanced) message is 1 about
+  // half the time: what makes the binomial null hold over keys.
+  const Bits zeros(48, 0);
+  std::vector<int> ones(48, 0);
+  const int keys = 4000;
+  for (int k = 0; k < keys; ++k) {
+    const Bits keyed = ApplyKey(zeros, "key-" + std::to_string(k));
+    for (int i = 0; i < 48; ++i) ones[i] += keyed[i];
+  }
+  // 4 sigma of Binomial(4000, 1/2) is 126.
+  for (int i = 0; i < 48; ++i) EXPECT_NEAR(ones[i], keys / 2, 126) << i;
+}
+
+TEST(MessageKey, AKeyFileGivesItsFirstLine) {
+  const std::string path =
+      ::testing::TempDir() + "/message_test_key_" + std::to_string(getpid());
+  {
+    std::ofstream out(path);
+    out << "secret from file\r\nsecond line\n";
+  }
+  EXPECT_EQ(ResolveKey("file:" + path), "secret from file");
+  EXPECT_EQ(ResolveKey("plain key"), "plain key");
+  {
+    std::ofstream out(path);
+    out << "\n";
+  }
+  EXPECT_THROW(ResolveKey("file:" + path), Error);
+  std::remove(path.c_str());
+  try {
+    ResolveKey("file:" + path);
+    FAIL() << "a missing key file was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos);
+  }
 }
 
 }  // namespace

@@ -1,0 +1,158 @@
+// CLI tests of the owner's key (issue 27): a model embedded under a key
+// reads "present" only for the message under that key, in extract, detect
+// and report alike, whether the key is typed or read from a file; and
+// `null_calibration` reads unmarked views from extract's JSON.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+
+#include "gaussian/file_util.h"
+#include "gaussian/ply_io.h"
+#include "plugin/image_file.h"
+#include "plugin/workspace.h"
+#include "tests/plugin/rendered_images.h"
+#include "tests/plugin/rendered_workspace.h"
+#include "watermark/message.h"
+
+namespace watergs {
+namespace {
+
+using testing::RunCommand;
+using testing::TempDir;
+using testing::WatergsBin;
+
+const std::string kMessage = "text:owner";
+const std::string kKey = "correct horse battery staple";
+const std::string kDecoder =
+    std::string(WATERGS_SOURCE_DIR) + "/watermark/models/decoder_48.bin";
+
+bool Present(const std::string& output) {
+  return output.find("verdict: watermark present") != std::string::npos;
+}
+
+TEST(KeyCli, OnlyTheKeyedClaimReadsPresent) {
+  TempDir dir("key_cli");
+  testing::SyntheticModelOptions options;
+  options.num_images = 6;
+  options.width = 48;
+  options.height = 36;
+  GaussianModel raw;
+  WorkspaceOptions wo;
+  wo.workspace_path = testing::MakeRenderedWorkspace(dir / "ws", options, &raw);
+  WritePly(dir / "raw.ply", raw);
+  const std::string key_file = dir / "owner.key";
+  {
+    std::ofstream out(key_file);
+    out << kKey << "\n";
+  }
+  const auto embed = RunCommand(
+      WatergsBin() + " embed --input_path " + (dir / "raw.ply") +
+      " --workspace_path " + wo.workspace_path + " --decoder " + kDecoder +
+      " --message " + kMessage + " --key 'file:" + key_file +
+      "' --output_path " + (dir / "wm.ply") +
+      " --iterations 800 --distortions none --free_view_fraction 0"
+      " --check_free_views 0 --num_threads 2");
+  ASSERT_EQ(embed.exit_code, 0) << embed.output;
+  // The fingerprint an owner registers: SHA-256 of the key's bytes.
+  EXPECT_NE(embed.output.find("key SHA-256 " + KeyFingerprint(kKey)),
+            std::string::npos)
+      << embed.output;
+
+  const std::string extract = WatergsBin() + " extract --input_path " +
+                              (dir / "wm.ply") + " --workspace_path " +
+                              wo.workspace_path + " --decoder " + kDecoder +
+                              " --message " + kMessage;
+  const auto keyed = RunCommand(extract + " --key '" + kKey + "'");
+  ASSERT_EQ(keyed.exit_code, 0) << keyed.output;
+  EXPECT_TRUE(Present(keyed.output)) << keyed.output;
+  // Under the key the bits read are the message the owner typed.
+  EXPECT_NE(keyed.output.find("message under the key hex " +
+                              BitsToHex(ParseMessage(kMessage, 48))),
+            std::string::npos)
+      << keyed.output;
+  const auto from_file = RunCommand(extract + " --key file:" + key_file);
+  EXPECT_TRUE(Present(from_file.output)) << from_file.output;
+  const auto unkeyed = RunCommand(extract);
+  ASSERT_EQ(unkeyed.exit_code, 0) << unkeyed.output;
+  EXPECT_FALSE(Present(unkeyed.output)) << unkeyed.output;
+  const auto wrong_key = RunCommand(extract + " --key 'correct horse'");
+  EXPECT_FALSE(Present(wrong_key.output)) << wrong_key.output;
+  const auto missing = RunCommand(extract + " --key file:" + (dir / "nokey"));
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.output.find(dir / "nokey"), std::string::npos)
+      << missing.output;
+
+  // detect on the renders as image files, with and without the key.
+  const Workspace workspace = Workspace::Open(wo);
+  const std::string pngs = dir / "png";
+  CreateDirectories(pngs);
+  const std::vector<ImageRGB> renders =
+      testing::RenderViews(ReadPly(dir / "wm.ply").model, workspace);
+  for (size_t k = 0; k < renders.size(); ++k) {
+    WriteImageFile(pngs + "/view_" + std::to_string(k) + ".png", renders[k]);
+  }
+  const std::string detect = WatergsBin() + " detect --decoder " + kDecoder +
+                             " --image_path " + pngs + " --message " + kMessage;
+  EXPECT_TRUE(Present(RunCommand(detect + " --key '" + kKey + "'").output));
+  EXPECT_FALSE(Present(RunCommand(detect).output));
+
+  // The report names the key by its fingerprint and repeats --key.
+  const std::string html = dir / "report.html";
+  const auto report =
+      RunCommand(WatergsBin() + " report --raw_path " + (dir / "raw.ply") +
+                 " --input_path " + (dir / "wm.ply") + " --workspace_path " +
+                 wo.workspace_path + " --decoder " + kDecoder + " --message " +
+                 kMessage + " --key file:" + key_file + " --output_path " +
+                 html + " --image_attacks '' --show_views 1");
+  ASSERT_EQ(report.exit_code, 0) << report.output;
+  std::ifstream in(html);
+  const std::string text((std::istreambuf_iterator<char>(in)),
+                         std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find(KeyFingerprint(kKey)), std::string::npos);
+  EXPECT_NE(text.find("--key file:" + key_file), std::string::npos);
+  EXPECT_NE(text.find("watermark present"), std::string::npos);
+
+  // The raw model's views, as extract writes them, are a null group.
+  const std::string raw_json = dir / "raw_views.json";
+  const auto raw_extract =
+      RunCommand(WatergsBin() + " extract --input_path " + (dir / "raw.ply") +
+                 " --workspace_path " + wo.workspace_path + " --decoder " +
+                 kDecoder + " --num_views 40 --json " + raw_json);
+  ASSERT_EQ(raw_extract.exit_code, 0) << raw_extract.output;
+  const auto null = RunCommand(WatergsBin() + " null_calibration --decoder " +
+                               kDecoder + " --logits " + raw_json +
+                               " --keys 50 --single_keys 1 --aggregate 1,6"
+                               " --aggregates 30 --markdown " +
+                               (dir / "null.md"));
+  ASSERT_EQ(null.exit_code, 0) << null.output;
+  EXPECT_NE(null.output.find("raw_views 40"), std::string::npos) << null.output;
+  EXPECT_NE(null.output.find("| text:WGS-26, 50 keys | 6 | 0.01 | "),
+            std::string::npos)
+      << null.output;
+  EXPECT_TRUE(std::ifstream(dir / "null.md").good());
+}
+
+TEST(KeyCli, NullCalibrationRefusesBadLogitFilesInOneLine) {
+  TempDir dir("null_cli");
+  const std::string base =
+      WatergsBin() + " null_calibration --decoder " + kDecoder + " --logits ";
+  const std::string not_json = dir / "a.json";
+  AtomicWriteFile(not_json, "{ not json");
+  const std::string no_views = dir / "b.json";
+  AtomicWriteFile(no_views, "{\"mean_logits\": [1, 2]}");
+  const std::string short_view = dir / "c.json";
+  AtomicWriteFile(short_view, "{\"views\": [{\"logits\": [0.5, -1]}]}");
+  for (const std::string& path : {not_json, no_views, short_view}) {
+    const auto r = RunCommand(base + path);
+    EXPECT_NE(r.exit_code, 0) << path;
+    testing::ExpectOneLineError(r, path);
+  }
+  const auto none =
+      RunCommand(WatergsBin() + " null_calibration --decoder " + kDecoder);
+  EXPECT_NE(none.exit_code, 0);
+  EXPECT_NE(none.output.find("--logits"), std::string::npos) << none.output;
+}
+
+}  // namespace
+}  // namespace watergs
