@@ -35,7 +35,7 @@ esac
 out_dir="${out_dir:-$default_dir}"
 
 for tool in povray colmap python3; do
-  command -v "$tool" >/dev/null || { echo "make_demo_scene: '$tool' not found (run scripts/install_deps.sh)" >&2; exit 1; }
+  command -v "$tool" >/dev/null || { echo "make_demo_scene: '$tool' not found (run scripts/install_deps.sh --all)" >&2; exit 1; }
 done
 
 readonly width=480 height=360 fov_deg=60 jpeg_quality=88

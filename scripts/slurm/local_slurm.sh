@@ -5,7 +5,7 @@
 #   local_slurm.sh start DIR   starts munged, slurmctld and slurmd; prints 'export SLURM_CONF=DIR/slurm.conf'
 #                              once the node accepts jobs (exit 3 with the reason when the daemons cannot run)
 #   local_slurm.sh stop DIR    stops the daemons started in DIR (by their pid files) and waits for them
-# Needs the Debian packages slurm-wlm and munge (scripts/install_deps.sh). Slurm runs as the calling user.
+# Needs the Debian packages slurm-wlm and munge (scripts/install_deps.sh --tests). Slurm runs as the calling user.
 set -euo pipefail
 script_name="$(basename "$0")"
 
@@ -72,7 +72,7 @@ start() {
   for bin in munged slurmctld slurmd sbatch squeue sinfo; do
     command -v "$bin" >/dev/null || PATH="$PATH:/usr/sbin"
     command -v "$bin" >/dev/null ||
-      cannot_run "'$bin' not found (the Debian packages slurm-wlm and munge: bash scripts/install_deps.sh)"
+      cannot_run "'$bin' not found (the Debian packages slurm-wlm and munge: bash scripts/install_deps.sh --tests)"
   done
   mkdir -p "$dir"
   dir="$(cd "$dir" && pwd)"

@@ -34,6 +34,8 @@ Scene defaults:
 Run:
   --device cpu|cuda       watergs's --device (cuda asks Slurm for a GPU per scene; default cpu)
   --bin PATH              watergs binary, visible from the compute nodes (default build/plugin/watergs)
+  --checkpoint_every N    training and embedding checkpoints every N iterations (default 1000): a
+                          signalled (preempted, timed-out, scancelled) step resumes from its last one
   --retry_failed          run failed scenes again (by default a scene that failed stays failed: its
                           error is most often its input; interrupted scenes always resume)
   --wait                  wait for the aggregate job, print the table; exit 1 if a scene is not done
@@ -55,7 +57,7 @@ die() {
 }
 log() { echo "[$(date -u +%H:%M:%S)] $*"; }
 
-manifest="" out="" device=cpu retry="" wait="" mode=slurm
+manifest="" out="" device=cpu retry="" wait="" mode=slurm checkpoint_every=1000
 bin="${WATERGS_BIN:-$repo_root/build/plugin/watergs}"
 python="${WATERGS_PYTHON:-python3}"
 sets=(--set "decoder=$repo_root/watermark/models/decoder_48.bin")
@@ -74,6 +76,7 @@ while [ $# -gt 0 ]; do
     --output_path) out="$2" ;;
     --device) device="$2" ;;
     --bin) bin="$2" ;;
+    --checkpoint_every) checkpoint_every="$2" ;;
     --message | --decoder | --downscale | --train_iterations | --embed_iterations | --seed | --attacks | \
       --train_args | --embed_args | --eval_args) sets+=(--set "${1#--}=$2") ;;
     *) slurm_take_option "$1" "$2" || die "unknown option '$1' (see --help)" ;;
@@ -83,6 +86,7 @@ done
 [ -n "$manifest" ] || die "--manifest is required (see --help)"
 [ -n "$out" ] || die "--output_path is required (see --help)"
 [[ "$device" =~ ^(cpu|cuda)$ ]] || die "--device '$device' is not cpu or cuda"
+[[ "$checkpoint_every" =~ ^[0-9]+$ ]] || die "--checkpoint_every '$checkpoint_every' is not a number of iterations"
 slurm_check_options "$device"
 command -v "$python" >/dev/null || die "$python not found (python3 runs the bookkeeping)"
 [ "$mode" = prepare ] || [ "$mode" = dry_run ] || [ -x "$bin" ] ||
@@ -112,7 +116,7 @@ num_pending=0
 log "$num_scenes scenes in $manifest, $num_pending to run${pending:+ (indices $pending)}"
 
 task=(bash "$script_dir/run_scene.sh" --scenes "$sub/scenes.tsv" --output_path "$out" --device "$device"
-  --bin "$bin")
+  --bin "$bin" --checkpoint_every "$checkpoint_every")
 aggregate=("$python" "$script_dir/batch_tool.py" aggregate --scenes "$sub/scenes.tsv" --output_path "$out")
 
 finish() {  # prints the table; with --wait, exit 1 unless every scene is done

@@ -17,7 +17,7 @@ except ImportError:
             "/usr/bin/python3") and not os.environ.get("WATERGS_K8S_CHECK_REEXEC"):
         os.environ["WATERGS_K8S_CHECK_REEXEC"] = "1"
         os.execv("/usr/bin/python3", ["/usr/bin/python3"] + sys.argv)
-    print("SKIP: no python3 with PyYAML here (Debian package python3-yaml: bash scripts/install_deps.sh)")
+    print("SKIP: no python3 with PyYAML here (Debian package python3-yaml: bash scripts/install_deps.sh --tests)")
     sys.exit(77)
 
 REPO = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))

@@ -51,7 +51,7 @@ class ColmapCompat : public ::testing::Test {
   static void SetUpTestSuite() {
     const testing::CommandResult help = testing::RunCommand(Colmap() + " -h");
     ASSERT_NE(help.output.find("COLMAP 3.8"), std::string::npos)
-        << "colmap 3.8 must be on PATH (scripts/install_deps.sh): "
+        << "colmap 3.8 must be on PATH (scripts/install_deps.sh --tests): "
         << help.output;
   }
 

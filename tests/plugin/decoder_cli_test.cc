@@ -1,17 +1,25 @@
 // `watergs make_decoder` and `watergs decoder_stats` end to end: a decoder
 // made from photos loads and reads unmarked images without a false positive;
-// the same command twice writes the same bytes; bad input is a one-line
-// error naming the file or option, and writes nothing.
+// the same command twice writes the same bytes; decoder_stats counts a steered
+// image reading the claim as one false positive, in its line and its JSON;
+// bad input is a one-line error naming the file or option, and writes nothing.
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <regex>
 #include <string>
 
 #include "gaussian/file_util.h"
+#include "plugin/image_file.h"
 #include "tests/plugin/rendered_workspace.h"
 #include "tests/plugin/synthetic_model.h"
 #include "watermark/bit_decoder.h"
+#include "watermark/decoder_training.h"
+#include "watermark/feature_decoder_calibration.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -24,6 +32,39 @@ using testing::WatergsBin;
 
 const std::string kPhotos =
     std::string(WATERGS_SOURCE_DIR) + "/tests/data/photos";
+const std::string kShippedDecoder =
+    std::string(WATERGS_SOURCE_DIR) + "/watermark/models/decoder_48.bin";
+
+// decoder_stats' figures: its second line's count and fewest bit errors,
+// and its JSON.
+struct StatsFigures {
+  int false_positives = -1, min_bit_errors = -1;
+  nlohmann::json json;
+};
+
+StatsFigures RunDecoderStats(const std::string& folder,
+                             const std::string& message,
+                             const std::string& json_path) {
+  const CommandResult run =
+      RunCommand(WatergsBin() + " decoder_stats --decoder " + kShippedDecoder +
+                 " --image_path " + folder + " --message " + message +
+                 " --json " + json_path);
+  StatsFigures figures;
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  std::smatch m;
+  const std::regex line(
+      "would pass the verdict \\(p <= 1e-06, at most 7 of 48 bits wrong\\): "
+      "([0-9]+); fewest bit errors seen ([0-9]+)");
+  EXPECT_TRUE(std::regex_search(run.output, m, line)) << run.output;
+  if (!m.empty()) {
+    figures.false_positives = std::stoi(m[1]);
+    figures.min_bit_errors = std::stoi(m[2]);
+  }
+  std::ifstream in(json_path);
+  figures.json = nlohmann::json::parse(in, nullptr, false);
+  EXPECT_FALSE(figures.json.is_discarded()) << json_path;
+  return figures;
+}
 
 std::string MakeDecoderCommand(const std::string& output) {
   return WatergsBin() + " make_decoder --image_path " + kPhotos +
@@ -51,6 +92,59 @@ TEST(DecoderCli, MakeDecoderWritesALoadableReproducibleDecoder) {
   ASSERT_EQ(stats.exit_code, 0) << stats.output;
   EXPECT_NE(stats.output.find("100 crops"), std::string::npos) << stats.output;
   EXPECT_NE(stats.output.find("would pass the verdict"), std::string::npos);
+}
+
+// The positive case of the false-positive counter, end to end: the held-out
+// photos read nothing close to a claim (0 counted, >= 12 bits wrong), and a
+// copy of one of them steered to the claim, saved as an 8-bit PNG beside
+// them, is counted once, in the printed line and in the JSON, with the
+// claim's bits under its path.
+TEST(DecoderCli, DecoderStatsCountsASteeredImageReadingTheClaim) {
+  TempDir dir("decoder_stats_positive");
+  std::mt19937 rng(41);
+  Bits target(48);
+  for (auto& b : target) b = rng() & 1;
+  const std::string claim = "bits:" + BitsToString(target);
+
+  const StatsFigures unmarked =
+      RunDecoderStats(kPhotos, claim, dir / "unmarked.json");
+  EXPECT_EQ(unmarked.false_positives, 0);
+  EXPECT_GE(unmarked.min_bit_errors, 12);
+  EXPECT_EQ(unmarked.json.value("images", -1), 8);
+  EXPECT_EQ(unmarked.json.value("false_positives", -1), 0);
+  EXPECT_EQ(unmarked.json.value("min_bit_errors", -1), unmarked.min_bit_errors);
+
+  const std::string folder = dir / "photos";
+  std::filesystem::copy(kPhotos, folder);
+  std::vector<std::string> paths;
+  const std::vector<cv::Mat> photos = LoadPhotoFolder(folder, &paths);
+  ASSERT_EQ(photos.size(), 8u);
+  std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(kShippedDecoder, Device::kCpu, 48);
+  // A margin that survives the 8-bit rounding of the PNG.
+  const SteerResult steered =
+      SteerPixels(*decoder, ToImageRGB(photos[0]), target, 600, 0.002, 2.0);
+  ASSERT_EQ(steered.bit_errors, 0);
+  const std::string steered_path = folder + "/steered.png";
+  WriteImageFile(steered_path, steered.image);
+  ASSERT_EQ(BitsToString(
+                MeasureBalance(*decoder, {ReadImageFile(steered_path)}, target)
+                    .image_bits[0]),
+            BitsToString(target));
+
+  const StatsFigures mixed = RunDecoderStats(folder, claim, dir / "mixed.json");
+  EXPECT_EQ(mixed.false_positives, 1);
+  EXPECT_EQ(mixed.min_bit_errors, 0);
+  EXPECT_EQ(mixed.json.value("images", -1), 9);
+  EXPECT_EQ(mixed.json.value("false_positives", -1), 1);
+  EXPECT_EQ(mixed.json.value("min_bit_errors", -1), 0);
+  int reading_the_claim = 0;
+  for (const auto& image : mixed.json.value("per_image", nlohmann::json())) {
+    if (image.value("bits", "") != BitsToString(target)) continue;
+    ++reading_the_claim;
+    EXPECT_EQ(image.value("path", ""), steered_path);
+  }
+  EXPECT_EQ(reading_the_claim, 1);
 }
 
 TEST(DecoderCli, BadInputIsAOneLineErrorAndWritesNothing) {

@@ -137,6 +137,52 @@ TEST(TrainCli, RefusesFoldersHoldingInputsOrAnEarlierRun) {
   EXPECT_FALSE(ReadFileBytes(out + "/point_cloud.ply") == ply) << "kept";
 }
 
+// An interrupted run leaves its checkpoint and none of the final files: the
+// case where replacing it loses the most work. A folder holding only the
+// checkpoint is refused without --resume and left as it was, and --resume
+// continues it. Each of the other run files alone is refused too.
+TEST(TrainCli, RefusesAFolderHoldingOnlyTheCheckpointOfAnInterruptedRun) {
+  TempDir dir("train_checkpoint_only");
+  const std::string ws =
+      testing::MakeRenderedWorkspace(dir / "ws", testing::SmallSceneOptions());
+  const std::string train = WatergsBin() + " train --workspace_path " + ws +
+                            " --iterations 4 --sh_degree 1 --num_threads 1";
+  const std::string out = dir / "run";
+  const auto first =
+      RunCommand(train + " --checkpoint_every 2 --output_path " + out);
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  for (const std::string& name : FileNames(out)) {
+    if (name != "checkpoint.ckpt") fs::remove(out + "/" + name);
+  }
+  ASSERT_EQ(FileNames(out), std::vector<std::string>{"checkpoint.ckpt"});
+  const auto checkpoint = ReadFileBytes(out + "/checkpoint.ckpt");
+
+  ExpectOneLineError(RunCommand(train + " --seed 5 --output_path " + out),
+                     out + ": holds an earlier run (checkpoint.ckpt)");
+  ExpectOneLineError(
+      RunCommand(train + " --checkpoint_every 2 --output_path " + out),
+      out + ": holds an earlier run (checkpoint.ckpt)");
+  EXPECT_EQ(FileNames(out), std::vector<std::string>{"checkpoint.ckpt"});
+  EXPECT_TRUE(ReadFileBytes(out + "/checkpoint.ckpt") == checkpoint)
+      << "replaced";
+
+  const auto resumed = RunCommand(train + " --resume --output_path " + out);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  EXPECT_NE(resumed.output.find("train: resumed at iteration 4"),
+            std::string::npos)
+      << resumed.output;
+  EXPECT_TRUE(fs::exists(out + "/point_cloud.ply"));
+
+  for (const char* name : {"report.json", "cameras.json", "train_log.jsonl"}) {
+    const std::string other = dir / (std::string("only_") + name);
+    fs::create_directory(other);
+    AtomicWriteFile(other + "/" + name, std::string());
+    ExpectOneLineError(RunCommand(train + " --output_path " + other),
+                       other + ": holds an earlier run (" + name + ")");
+    EXPECT_EQ(FileNames(other), std::vector<std::string>{name});
+  }
+}
+
 TEST(ExtractAndAttackCli, CheckTheirOutputsBeforeTheWork) {
   TempDir dir("outputs_first");
   GaussianModel truth;

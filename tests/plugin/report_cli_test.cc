@@ -423,7 +423,8 @@ TEST(ReportScreenshot, ImagesDecodeWhereTheyStandAndTheConsoleStaysEmpty) {
   const PageCheck check = CheckInBrowser(page, dir / "shot.png");
   if (check.skipped) {
     GTEST_SKIP() << "no Chromium at /usr/bin/chromium (apt-get install "
-                    "chromium; scripts/install_deps.sh does): the report's "
+                    "chromium; scripts/install_deps.sh --tests does): the "
+                    "report's "
                     "browser check needs it";
   }
   EXPECT_EQ(check.images, 6u);

@@ -92,7 +92,6 @@ def test_ctrl_c_stops_training(tmp_path):
             time.sleep(0.005)
 
     watcher = threading.Thread(target=ctrl_c_once_training_started)
-    start = time.monotonic()
     watcher.start()
     try:
         with pytest.raises(KeyboardInterrupt):
@@ -101,7 +100,9 @@ def test_ctrl_c_stops_training(tmp_path):
     finally:
         stop.set()
         watcher.join()
-    assert time.monotonic() - start < 20
+    # No bound on the wall time (a loaded machine can take any time): a
+    # SIGINT that only ran once training returned would leave the finished
+    # run's folder, which a stopped run removes.
     assert not out.exists()
 
 

@@ -9,7 +9,10 @@
 #   3. a scene interrupted during its evaluation resumes with only that step, and one whose cached
 #      steps were made with other options is refused;
 #   4. datasets_scripts/reproduce_tables.sh --slurm submits through the same code (2 scenes, tiny
-#      settings): its tables cover both scenes, and the same command again submits nothing.
+#      settings): its tables cover both scenes, and the same command again submits nothing;
+#   5. a real interruption: an embedding signalled while it runs (scancel --signal=TERM --full) is
+#      recorded as interrupted, and the resubmission resumes it from its checkpoint ("resumed at
+#      iteration") to a watermarked PLY byte-identical to the uninterrupted run of step 1.
 # Exit 77 (CTest skip) only when the Slurm daemons cannot start here, with the reason; with
 # WATERGS_REQUIRE_SLURM=1 that is a failure too.
 set -euo pipefail
@@ -219,4 +222,53 @@ timeout 120 "${reproduce[@]}" >"$tmp/reproduce2.txt" 2>&1 || rc=$?
 [ "$rc" -eq 0 ] || { cat "$tmp/reproduce2.txt"; fail "reproduce_tables.sh --slurm again: exit $rc"; }
 grep -q "nothing to submit" "$tmp/reproduce2.txt" || fail "reproduce_tables.sh --slurm again submitted jobs"
 [ "$(ls -d "$tmp"/reproduce/submissions/*/ | wc -l)" -eq 1 ] || fail "reproduce_tables.sh --slurm again made a submission"
+echo "== 5. an embedding signalled while it runs resumes from its checkpoint"
+# gamma is alpha (same workspace, options, seed and thread count) in another output folder, with
+# checkpoints every 10 iterations (the signal comes at the first, leaving 290 iterations to interrupt);
+# alpha's files from step 1 are the uninterrupted run.
+echo "$demo name=gamma" >"$tmp/manifest_resume.txt"
+out_resume="$tmp/out_resume"
+resume_submit=(bash "$repo/scripts/slurm/watergs_batch.sh" --manifest "$tmp/manifest_resume.txt"
+  --output_path "$out_resume" --bin "$bin" --message text:WGS-26 --downscale 8 --train_iterations 300
+  --embed_iterations 300 --embed_args "--free_view_fraction 0.5 --densify off" --checkpoint_every 10
+  --cpus_per_task 1 --mem 2G --time 00:10:00 --aggregate_time 00:05:00 --wait)
+gamma="$out_resume/scenes/gamma"
+rm -f "$tmp/resume1.rc"
+(
+  rc=0
+  timeout 600 "${resume_submit[@]}" >"$tmp/resume1.txt" 2>&1 || rc=$?
+  echo "$rc" >"$tmp/resume1.rc"
+) &
+submitter=$!
+# Signal once the embedding has written its first checkpoint (not after a fixed time).
+for _ in $(seq 1 12000); do
+  { [ -f "$gamma/watermarked.ply.ckpt" ] || [ -f "$tmp/resume1.rc" ]; } && break
+  sleep 0.05
+done
+[ -f "$gamma/watermarked.ply.ckpt" ] || { cat "$tmp/resume1.txt"; fail "gamma's embedding wrote no checkpoint"; }
+job="$(squeue -h -n watergs-batch -o %A | head -n 1)"
+[ -n "$job" ] || fail "gamma's array job is not in the queue"
+scancel --signal=TERM --full "$job"
+wait "$submitter" || true
+cat "$tmp/resume1.txt"
+[ "$(cat "$tmp/resume1.rc")" = 1 ] || fail "submission with a signalled embedding: exit $(cat "$tmp/resume1.rc"), expected 1"
+[ ! -f "$gamma/embed.seconds" ] || fail "gamma's embedding finished before the signal reached it (no interruption tested)"
+grep -q '"state": "interrupted"' "$gamma/status.json" || fail "gamma not interrupted: $(cat "$gamma/status.json")"
+grep -q '"step": "embed"' "$gamma/status.json" || fail "gamma not interrupted at embed: $(cat "$gamma/status.json")"
+[ -f "$gamma/watermarked.ply.ckpt" ] || fail "the interrupted embedding's checkpoint is gone"
+[ ! -e "$gamma/watermarked.ply" ] || fail "an interrupted embedding left a watermarked.ply"
+rc=0
+timeout 600 "${resume_submit[@]}" >"$tmp/resume2.txt" 2>&1 || rc=$?
+cat "$tmp/resume2.txt"
+[ "$rc" -eq 0 ] || fail "resubmission after the signal: exit $rc, expected 0"
+last="$(ls -d "$out_resume"/submissions/*/ | tail -n 1)"
+grep -q "cached: train gamma" "$last"slurm-*_0.out || fail "gamma's training was not reused"
+grep -E "resumed at iteration [1-9][0-9]*" "$gamma/embed.log" || fail "gamma's embedding did not resume from its checkpoint"
+grep -q '"state": "done"' "$gamma/status.json" || fail "gamma not done after resuming"
+cmp "$out/scenes/alpha/train/point_cloud.ply" "$gamma/train/point_cloud.ply" ||
+  fail "gamma's training differs from alpha's (the runs are not comparable)"
+cmp "$out/scenes/alpha/watermarked.ply" "$gamma/watermarked.ply" ||
+  fail "the resumed embedding differs from the uninterrupted run"
+echo "gamma: signalled during embed, resumed ($(grep -o 'resumed at iteration [0-9]*' "$gamma/embed.log")), same PLY as alpha"
+
 echo "PASS in $((SECONDS - begin)) s"

@@ -126,6 +126,54 @@ TEST(LoadBitDecoder, CpuReadsWhatTheSavedDecoderReads) {
   EXPECT_EQ(dimage.data, reference.InputGradient(image, dlogits).data);
 }
 
+// The decoder keeps its last forward pass for InputGradient of the same
+// image; any other image, of the same size or not, or the same buffer with one
+// value changed, must get a fresh forward pass: each answer equals that of a
+// decoder that never saw another image (a separate copy of the weights, so
+// that no network state is shared).
+TEST(LoadBitDecoder, CacheMissesGiveAFreshDecodersAnswers) {
+  TempFolder folder;
+  HiddenModel net(TinyConfig(), false, 7);
+  const std::string path = folder.File("decoder.bin");
+  SaveHiddenModel(path, net, false);
+  std::vector<float> dlogits(16);
+  for (int i = 0; i < 16; ++i) dlogits[i] = 0.1f * (i - 7.5f);
+  auto fresh_logits = [&](const ImageRGB& image) {
+    return Decoder::Load(path, 16).Logits(image);
+  };
+  auto fresh_gradient = [&](const ImageRGB& image) {
+    return Decoder::Load(path, 16).InputGradient(image, dlogits).data;
+  };
+  const ImageRGB a = TestImage(20, 14, 3), b = TestImage(20, 14, 4),
+                 c = TestImage(17, 11, 5);
+  // The cases can tell a cache hit from a miss.
+  ASSERT_NE(fresh_gradient(a), fresh_gradient(b));
+  ASSERT_NE(fresh_logits(a), fresh_logits(b));
+
+  const std::unique_ptr<BitDecoder> decoder =
+      LoadBitDecoder(path, Device::kCpu, 16);
+  ImageRGB dimage;
+  EXPECT_EQ(decoder->Logits(a), fresh_logits(a));
+  // InputGradient(B) after Logits(A), B of the same size.
+  decoder->InputGradient(b, dlogits, &dimage);
+  EXPECT_EQ(dimage.data, fresh_gradient(b)) << "gradient of A's pass";
+  EXPECT_EQ(decoder->Logits(b), fresh_logits(b));
+  // Another size, then back to A.
+  decoder->InputGradient(c, dlogits, &dimage);
+  EXPECT_EQ(dimage.width, c.width);
+  EXPECT_EQ(dimage.data, fresh_gradient(c));
+  EXPECT_EQ(decoder->Logits(a), fresh_logits(a));
+  decoder->InputGradient(a, dlogits, &dimage);
+  EXPECT_EQ(dimage.data, fresh_gradient(a));
+  // A render into the same buffer that changes one value.
+  ImageRGB edited = a;
+  edited.data[3 * (7 * 20 + 9) + 1] += 0.25f;
+  ASSERT_NE(fresh_logits(edited), fresh_logits(a));
+  EXPECT_EQ(decoder->Logits(edited), fresh_logits(edited));
+  decoder->InputGradient(edited, dlogits, &dimage);
+  EXPECT_EQ(dimage.data, fresh_gradient(edited));
+}
+
 TEST(LoadBitDecoder, CpuFailsAsDecoderLoadDoes) {
   TempFolder folder;
   HiddenModel net(TinyConfig(), false, 7);
