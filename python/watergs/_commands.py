@@ -209,6 +209,22 @@ def embed(input_path, workspace_path, decoder, message, output_path, *,
     return EmbedResult(output_path)
 
 
+def pipeline(image_path, decoder, message, output_path, *, progress=None,
+             quiet=False, **options):
+    """From a folder of photos to a watermarked model and its ownership
+    report: ``watergs pipeline`` (reconstruct, train, embed --report). Writes
+    OUTPUT/workspace, OUTPUT/train, OUTPUT/watermarked.ply and
+    OUTPUT/report.html; a second call keeps the stages done. Returns an
+    EmbedResult for OUTPUT/watermarked.ply. Keyword arguments: the CLI's
+    options (below)."""
+    output_path = _path("output_path", output_path)
+    run("pipeline", progress=progress, quiet=quiet,
+        image_path=_path("image_path", image_path),
+        decoder=_path("decoder", decoder), message=message,
+        output_path=output_path, **options)
+    return EmbedResult(os.path.join(output_path, "watermarked.ply"))
+
+
 class ExtractResult(_Result):
     """What `extract` read, and its verdict on the claimed message.
 
@@ -365,7 +381,7 @@ def render(input_path, workspace_path, output_path=None, *, progress=None,
 
 def _add_cli_help():
     """Appends each command's CLI options to its function's docstring."""
-    for function in (train, embed, extract, attack, render):
+    for function in (train, embed, extract, attack, render, pipeline):
         try:
             text = _watergs.command_help(function.__name__)
         except Exception:  # a docstring is not worth a failed import

@@ -195,3 +195,14 @@ def test_import_and_errors_without_numpy():
     assert lines[0] == watergs.__version__
     assert lines[1] == "64"
     assert lines[2].startswith("ImportError") and "numpy" in lines[2]
+
+
+def test_pipeline_names_a_missing_photo_folder_as_the_cli_does(tmp_path):
+    missing = tmp_path / "no_photos"
+    message = raised(watergs.pipeline, missing, DECODER, "text:X",
+                     tmp_path / "out", quiet=True)
+    assert str(missing) in message
+    assert message == cli_error("pipeline", "--image_path", missing,
+                                "--decoder", DECODER, "--message", "text:X",
+                                "--output_path", tmp_path / "out")
+    assert not (tmp_path / "out").exists()
