@@ -307,16 +307,23 @@ std::string EncodeSpz(const GaussianModel& model,
   }
   const size_t n = model.size();
   if (n > UINT32_MAX) Fail("SPZ: more than 2^32 Gaussians");
-  // 12 fractional bits unless the 24-bit range (+-2^23) would overflow.
-  double extent = 0;
-  for (float x : model.means) extent = std::max(extent, double(std::abs(x)));
-  int fractional_bits = 12;
-  while (fractional_bits > 0 &&
-         std::ldexp(extent, fractional_bits) >= 8388607.0) {
-    --fractional_bits;
+  // 12 fractional bits unless the signed 24-bit range [-2^23, 2^23 - 1]
+  // would overflow.
+  double lo = 0, hi = 0;
+  for (float x : model.means) {
+    lo = std::min(lo, double(x));
+    hi = std::max(hi, double(x));
   }
-  if (extent >= 8388607.0) {
-    Fail("SPZ: positions beyond +-8388607 cannot be stored in 24 bits");
+  const auto fits = [&](int bits) {
+    return std::ldexp(hi, bits) < 8388607.5 &&
+           std::ldexp(lo, bits) >= -8388608.5;
+  };
+  int fractional_bits = 12;
+  while (fractional_bits > 0 && !fits(fractional_bits)) --fractional_bits;
+  if (!fits(fractional_bits)) {
+    Fail(
+        "SPZ: positions beyond [-8388608, 8388607] cannot be stored in 24 "
+        "bits");
   }
   const int dim = ShDim(model.sh_degree);
   std::string raw;
