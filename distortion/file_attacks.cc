@@ -264,7 +264,7 @@ void QuantizeLinear(int bits, GaussianModel* model) {
   }
 }
 
-void ApplyCodec(ModelFormat codec, int spz_version, const GaussianModel& in,
+void ApplyCodec(GaussianFormat codec, int spz_version, const GaussianModel& in,
                 GaussianModel* out, std::vector<uint32_t>* source) {
   IdentitySource(in.size(), source);
   std::string bytes;
@@ -272,15 +272,15 @@ void ApplyCodec(ModelFormat codec, int spz_version, const GaussianModel& in,
     return reinterpret_cast<const uint8_t*>(bytes.data());
   };
   switch (codec) {
-    case ModelFormat::kSpz:
+    case GaussianFormat::kSpz:
       bytes = EncodeSpz(in, {spz_version});
       *out = DecodeSpz("spz codec", data(), bytes.size());
       break;
-    case ModelFormat::kCompressedPly:
+    case GaussianFormat::kCompressedPly:
       bytes = EncodeCompressedPly(in, source);
       *out = DecodeCompressedPly("compressed_ply codec", data(), bytes.size());
       break;
-    case ModelFormat::kSplat:
+    case GaussianFormat::kSplat:
       bytes = EncodeSplat(in);
       // .splat cannot hold 0 Gaussians; the round trip of none is none.
       if (in.size() == 0) {
@@ -290,7 +290,7 @@ void ApplyCodec(ModelFormat codec, int spz_version, const GaussianModel& in,
         *out = DecodeSplat("splat codec", data(), bytes.size());
       }
       break;
-    case ModelFormat::kPly:
+    case GaussianFormat::kPly:
       *out = in;
       break;
   }
@@ -344,7 +344,7 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
     }
   } else if (name == "spz") {
     spec.kind = ModelAttackKind::kCodec;
-    spec.codec = ModelFormat::kSpz;
+    spec.codec = GaussianFormat::kSpz;
     if (!args.empty()) {
       if (args != "2" && args != "3") {
         Fail("--attack: '" + Printable(text) + "': SPZ version 2 or 3");
@@ -354,8 +354,8 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
   } else if (name == "compressed_ply" || name == "splat") {
     no_args();
     spec.kind = ModelAttackKind::kCodec;
-    spec.codec =
-        name == "splat" ? ModelFormat::kSplat : ModelFormat::kCompressedPly;
+    spec.codec = name == "splat" ? GaussianFormat::kSplat
+                                 : GaussianFormat::kCompressedPly;
   } else {
     Fail("--attack: unknown attack '" + Printable(text) +
          "' (identity, gn:SIGMA, dropout:P, crop:P, sh0, fp16, quant:BITS, "
@@ -405,10 +405,10 @@ std::string ToString(const ModelAttackSpec& spec) {
       return out.str();
     }
     case ModelAttackKind::kCodec:
-      if (spec.codec == ModelFormat::kSpz) {
+      if (spec.codec == GaussianFormat::kSpz) {
         return "spz:" + std::to_string(spec.spz_version);
       }
-      return ModelFormatName(spec.codec);
+      return GaussianFormatName(spec.codec);
   }
   return "?";
 }

@@ -89,7 +89,7 @@ struct ModelAttackSpec {
   SimilarityTransform similarity;
   // kCodec: the file format whose real encoder and decoder are applied
   // (kSpz, kCompressedPly or kSplat), and the SPZ version (2 or 3).
-  ModelFormat codec = ModelFormat::kSpz;
+  GaussianFormat codec = GaussianFormat::kSpz;
   int spz_version = 3;
 };
 
@@ -97,7 +97,7 @@ struct ModelAttackSpec {
 // (in memory): spz (version 2 or 3), compressed_ply (Morton-ordered: source
 // gives each output Gaussian's input index) or splat (SH above degree 0
 // dropped, then zero-padded so the model keeps its SH degree and layout).
-void ApplyCodec(ModelFormat codec, int spz_version, const GaussianModel& in,
+void ApplyCodec(GaussianFormat codec, int spz_version, const GaussianModel& in,
                 GaussianModel* out, std::vector<uint32_t>* source);
 
 // Parses one attack: identity | gn:SIGMA | dropout:P | crop:P | sh0 | fp16 |

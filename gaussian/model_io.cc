@@ -51,29 +51,29 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
 
 }  // namespace
 
-const char* ModelFormatName(ModelFormat format) {
+const char* GaussianFormatName(GaussianFormat format) {
   switch (format) {
-    case ModelFormat::kPly:
+    case GaussianFormat::kPly:
       return "ply";
-    case ModelFormat::kCompressedPly:
+    case GaussianFormat::kCompressedPly:
       return "compressed_ply";
-    case ModelFormat::kSpz:
+    case GaussianFormat::kSpz:
       return "spz";
-    case ModelFormat::kSplat:
+    case GaussianFormat::kSplat:
       return "splat";
   }
   return "?";
 }
 
-ModelFormat DetectModelFormat(const std::string& path) {
+GaussianFormat DetectGaussianFormat(const std::string& path) {
   const std::vector<uint8_t> head = ReadPrefix(path, kSniffBytes);
   if (StartsWith(head, "ply\n") || StartsWith(head, "ply\r\n")) {
     return IsCompressedPlyHeader(head.data(), head.size())
-               ? ModelFormat::kCompressedPly
-               : ModelFormat::kPly;
+               ? GaussianFormat::kCompressedPly
+               : GaussianFormat::kPly;
   }
   if (StartsWith(head, "\x1f\x8b") || StartsWith(head, "NGSP")) {
-    return ModelFormat::kSpz;  // DecodeSpz names what it is not
+    return GaussianFormat::kSpz;  // DecodeSpz names what it is not
   }
   if (StartsWith(head, "PK\x03\x04")) {
     FailAt(path,
@@ -83,7 +83,7 @@ ModelFormat DetectModelFormat(const std::string& path) {
   std::error_code ec;
   const uint64_t size = std::filesystem::file_size(path, ec);
   if (ec) FailAt(path, "cannot read file size: " + ec.message());
-  if (size > 0 && size % 32 == 0) return ModelFormat::kSplat;
+  if (size > 0 && size % 32 == 0) return GaussianFormat::kSplat;
   FailAt(path,
          "not a 3DGS model: not PLY (no 'ply' line), not SPZ (no gzip "
          "signature), and " +
@@ -94,8 +94,8 @@ ModelFormat DetectModelFormat(const std::string& path) {
 ModelData ReadModelFile(const std::string& path,
                         const PlyReadOptions& options) {
   ModelData data;
-  data.format = DetectModelFormat(path);
-  if (data.format == ModelFormat::kPly) {
+  data.format = DetectGaussianFormat(path);
+  if (data.format == GaussianFormat::kPly) {
     static_cast<PlyData&>(data) = ReadPly(path, options);
     data.format_detail = "PLY";
     return data;
@@ -104,11 +104,11 @@ ModelData ReadModelFile(const std::string& path,
   data.file_size = bytes.size();
   size_t replaced = 0;
   switch (data.format) {
-    case ModelFormat::kCompressedPly:
+    case GaussianFormat::kCompressedPly:
       data.model = DecodeCompressedPly(path, bytes.data(), bytes.size());
       data.format_detail = "PlayCanvas compressed PLY";
       break;
-    case ModelFormat::kSpz: {
+    case GaussianFormat::kSpz: {
       SpzInfo info;
       try {
         data.model = DecodeSpz(path, bytes.data(), bytes.size(), &info);
@@ -122,7 +122,7 @@ ModelData ReadModelFile(const std::string& path,
         } catch (const Error&) {
           throw spz_error;
         }
-        data.format = ModelFormat::kSplat;
+        data.format = GaussianFormat::kSplat;
         data.format_detail = "antimatter15 .splat";
         break;
       }
@@ -132,11 +132,11 @@ ModelData ReadModelFile(const std::string& path,
                            (info.antialiased ? ", antialiased" : "") + ")";
       break;
     }
-    case ModelFormat::kSplat:
+    case GaussianFormat::kSplat:
       data.model = DecodeSplat(path, bytes.data(), bytes.size(), &replaced);
       data.format_detail = "antimatter15 .splat";
       break;
-    case ModelFormat::kPly:
+    case GaussianFormat::kPly:
       break;
   }
   // The decoders produce only finite values; a broken invariant must not
@@ -150,23 +150,23 @@ ModelData ReadModelFile(const std::string& path,
   return data;
 }
 
-ModelFormat OutputFormatForPath(const std::string& path) {
-  if (EndsWith(path, ".compressed.ply")) return ModelFormat::kCompressedPly;
-  if (EndsWith(path, ".spz")) return ModelFormat::kSpz;
-  if (EndsWith(path, ".splat")) return ModelFormat::kSplat;
-  return ModelFormat::kPly;
+GaussianFormat OutputFormatForPath(const std::string& path) {
+  if (EndsWith(path, ".compressed.ply")) return GaussianFormat::kCompressedPly;
+  if (EndsWith(path, ".spz")) return GaussianFormat::kSpz;
+  if (EndsWith(path, ".splat")) return GaussianFormat::kSplat;
+  return GaussianFormat::kPly;
 }
 
 void WriteModelFile(const std::string& path, const GaussianModel& model,
                     const PlyLayout& layout) {
   switch (OutputFormatForPath(path)) {
-    case ModelFormat::kPly:
+    case GaussianFormat::kPly:
       return WritePly(path, model, layout);
-    case ModelFormat::kCompressedPly:
+    case GaussianFormat::kCompressedPly:
       return WriteCompressedPly(path, model);
-    case ModelFormat::kSpz:
+    case GaussianFormat::kSpz:
       return WriteSpz(path, model);
-    case ModelFormat::kSplat:
+    case GaussianFormat::kSplat:
       return WriteSplat(path, model);
   }
 }

@@ -17,10 +17,10 @@
 
 namespace watergs {
 
-enum class ModelFormat { kPly, kCompressedPly, kSpz, kSplat };
+enum class GaussianFormat { kPly, kCompressedPly, kSpz, kSplat };
 
 // "ply", "compressed_ply", "spz", "splat".
-const char* ModelFormatName(ModelFormat format);
+const char* GaussianFormatName(GaussianFormat format);
 
 // A model as read from any format. The PlyData part is what ReadPly gives
 // for a PLY; for the other formats the layout is Inria's for the model's SH
@@ -28,7 +28,7 @@ const char* ModelFormatName(ModelFormat format);
 // non_finite_count is 0 (those readers refuse NaN/Inf).
 struct ModelData : PlyData {
   // Format the content was detected as.
-  ModelFormat format = ModelFormat::kPly;
+  GaussianFormat format = GaussianFormat::kPly;
   // One line on the format, e.g. "SPZ version 3 (12 fractional bits)".
   std::string format_detail;
 };
@@ -36,7 +36,7 @@ struct ModelData : PlyData {
 // Format of the file at `path` from its first bytes; throws
 // Error("<path>: <problem>") if it is missing, unreadable or none of the
 // formats (see the top of this file).
-ModelFormat DetectModelFormat(const std::string& path);
+GaussianFormat DetectGaussianFormat(const std::string& path);
 
 // Reads a model in any format. Throws Error("<path>: <problem>") for
 // anything it cannot read. Infinite opacity logits and zero scales are read
@@ -47,7 +47,7 @@ ModelData ReadModelFile(const std::string& path,
 
 // The format an output path asks for by its extension (case-insensitive):
 // .spz, .splat, .compressed.ply; anything else is kPly.
-ModelFormat OutputFormatForPath(const std::string& path);
+GaussianFormat OutputFormatForPath(const std::string& path);
 
 // Writes `model` atomically in the format OutputFormatForPath(path) names;
 // a PLY is written in `layout` (see WritePly), the other formats ignore it.

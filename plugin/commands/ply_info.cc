@@ -182,7 +182,7 @@ int RunPlyInfo(int argc, char** argv) {
   watergs::PlyReadOptions options;
   options.allow_non_finite = true;  // report them instead of refusing
   const watergs::ModelData data = watergs::ReadModelFile(input_path, options);
-  const bool ply = data.format == watergs::ModelFormat::kPly;
+  const bool ply = data.format == watergs::GaussianFormat::kPly;
   const watergs::GaussianModel& m = data.model;
   const int rest = m.sh_rest_stride();
   std::printf("File:            %s\n", input_path.c_str());

@@ -61,7 +61,7 @@ TEST(ModelIo, DetectsFormatsByContentNotExtension) {
   const GaussianModel model = RandomModel(300, 1, 3);
   struct Case {
     std::string name;
-    ModelFormat format;
+    GaussianFormat format;
     int sh_degree;
   };
   const std::string ply = TempPath("is_ply.spz");
@@ -72,12 +72,12 @@ TEST(ModelIo, DetectsFormatsByContentNotExtension) {
   AtomicWriteFile(compressed, EncodeCompressedPly(model));
   const std::string splat = TempPath("is_splat.compressed.ply");
   AtomicWriteFile(splat, EncodeSplat(model));
-  const Case cases[] = {{ply, ModelFormat::kPly, 1},
-                        {spz, ModelFormat::kSpz, 1},
-                        {compressed, ModelFormat::kCompressedPly, 1},
-                        {splat, ModelFormat::kSplat, 0}};
+  const Case cases[] = {{ply, GaussianFormat::kPly, 1},
+                        {spz, GaussianFormat::kSpz, 1},
+                        {compressed, GaussianFormat::kCompressedPly, 1},
+                        {splat, GaussianFormat::kSplat, 0}};
   for (const Case& c : cases) {
-    EXPECT_EQ(DetectModelFormat(c.name), c.format) << c.name;
+    EXPECT_EQ(DetectGaussianFormat(c.name), c.format) << c.name;
     const ModelData data = ReadModelFile(c.name);
     EXPECT_EQ(data.format, c.format) << c.name;
     EXPECT_EQ(data.model.size(), model.size()) << c.name;
@@ -92,19 +92,19 @@ TEST(ModelIo, DetectsFormatsByContentNotExtension) {
 }
 
 TEST(ModelIo, WritesTheFormatTheExtensionNames) {
-  EXPECT_EQ(OutputFormatForPath("a/b.SPZ"), ModelFormat::kSpz);
-  EXPECT_EQ(OutputFormatForPath("b.splat"), ModelFormat::kSplat);
+  EXPECT_EQ(OutputFormatForPath("a/b.SPZ"), GaussianFormat::kSpz);
+  EXPECT_EQ(OutputFormatForPath("b.splat"), GaussianFormat::kSplat);
   EXPECT_EQ(OutputFormatForPath("b.Compressed.PLY"),
-            ModelFormat::kCompressedPly);
-  EXPECT_EQ(OutputFormatForPath("b.ply"), ModelFormat::kPly);
-  EXPECT_EQ(OutputFormatForPath("spz"), ModelFormat::kPly);
+            GaussianFormat::kCompressedPly);
+  EXPECT_EQ(OutputFormatForPath("b.ply"), GaussianFormat::kPly);
+  EXPECT_EQ(OutputFormatForPath("spz"), GaussianFormat::kPly);
   const GaussianModel model = RandomModel(20, 2, 4);
   const PlyLayout layout = InriaPlyLayout(2, model.size());
   for (const char* name :
        {"out.spz", "out.splat", "out.compressed.ply", "out.ply"}) {
     const std::string path = TempPath(name);
     WriteModelFile(path, model, layout);
-    EXPECT_EQ(DetectModelFormat(path), OutputFormatForPath(path)) << name;
+    EXPECT_EQ(DetectGaussianFormat(path), OutputFormatForPath(path)) << name;
   }
   // A PLY keeps the layout it is given (here: an extra property).
   PlyLayout extra = layout;
@@ -157,7 +157,7 @@ TEST(ModelIo, SplatStartingLikeGzipIsStillASplat) {
   const std::string path = TempPath("gzip_like.splat");
   AtomicWriteFile(path, bytes);
   const ModelData data = ReadModelFile(path);
-  EXPECT_EQ(data.format, ModelFormat::kSplat);
+  EXPECT_EQ(data.format, GaussianFormat::kSplat);
   EXPECT_EQ(data.model.size(), 4u);
   std::string spz = EncodeSpz(model);
   spz.resize(64, 'x');  // a multiple of 32, but neither format:
