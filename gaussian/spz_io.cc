@@ -117,12 +117,22 @@ std::string Gzip(const std::string& raw) {
 // SH coefficients per channel above degree 0.
 int ShDim(int degree) { return NumShCoeffs(degree) - 1; }
 
-// Model quaternion (w, x, y, z) from SPZ's (x, y, z, w).
+// SPZ stores the RUB axes (y up, z back); 3DGS PLYs are RDF (y down, z
+// forward). The change (x, y, z) -> (x, -y, -z) is a half turn about x: it
+// negates the y and z of positions and of quaternions, and each real SH
+// basis function (3DGS order) keeps or flips its sign with the parity of
+// its y and z powers: degree 1 y z x; degree 2 xy yz zz xz xx-yy; degree 3
+// y(3xx-yy) xyz y(4zz-xx-yy) z(2zz-3xx-3yy) x(4zz-xx-yy) z(xx-yy)
+// x(xx-3yy). It is its own inverse, so reading and writing use it alike.
+constexpr float kAxisFlipSh[15] = {-1, -1, 1,  -1, 1, 1,  -1, 1,
+                                   -1, 1,  -1, -1, 1, -1, 1};
+
+// Model quaternion (w, x, y, z) in RDF from SPZ's (x, y, z, w) in RUB.
 void StoreQuat(const std::array<double, 4>& xyzw, float* q) {
   q[0] = float(xyzw[3]);
   q[1] = float(xyzw[0]);
-  q[2] = float(xyzw[1]);
-  q[3] = float(xyzw[2]);
+  q[2] = float(-xyzw[1]);
+  q[3] = float(-xyzw[2]);
 }
 
 void DecodeRotationV2(const uint8_t* r, float* q) {
@@ -152,10 +162,10 @@ void DecodeRotationV3(const uint8_t* r, float* q) {
   StoreQuat(v, q);
 }
 
-// SPZ's (x, y, z, w) of the normalised model quaternion.
+// SPZ's (x, y, z, w) in RUB of the normalised model quaternion.
 std::array<double, 4> Xyzw(const float* q) {
   const auto n = codec::Normalized(q);
-  return {n[1], n[2], n[3], n[0]};
+  return {n[1], -n[2], -n[3], n[0]};
 }
 
 void EncodeRotationV2(const float* q, std::string* out) {
@@ -269,7 +279,8 @@ GaussianModel DecodeSpz(const std::string& name, const uint8_t* data,
   for (size_t i = 0; i < 3 * n; ++i, p += 3) {
     int32_t fixed = int32_t(p[0] | p[1] << 8 | p[2] << 16);
     if (fixed & 0x800000) fixed -= 1 << 24;
-    model.means[i] = float(std::ldexp(double(fixed), -fractional_bits));
+    const double sign = i % 3 == 0 ? 1 : -1;  // RUB to RDF
+    model.means[i] = float(sign * std::ldexp(double(fixed), -fractional_bits));
   }
   for (size_t i = 0; i < n; ++i, ++p) {
     model.opacity_logits[i] = AlphaToOpacityLogit(*p / 255.0);
@@ -288,8 +299,10 @@ GaussianModel DecodeSpz(const std::string& name, const uint8_t* data,
     }
   }
   // SPZ's SH order (coefficient-major, rgb inner) is the model's.
+  const int stride = model.sh_rest_stride();
   for (size_t i = 0; i < model.sh_rest.size(); ++i, ++p) {
-    model.sh_rest[i] = float((*p - 128.0) / 128.0);
+    const float sign = kAxisFlipSh[(i % stride) / 3];
+    model.sh_rest[i] = sign * float((*p - 128.0) / 128.0);
   }
   return model;
 }
@@ -310,9 +323,10 @@ std::string EncodeSpz(const GaussianModel& model,
   // 12 fractional bits unless the signed 24-bit range [-2^23, 2^23 - 1]
   // would overflow.
   double lo = 0, hi = 0;
-  for (float x : model.means) {
-    lo = std::min(lo, double(x));
-    hi = std::max(hi, double(x));
+  for (size_t i = 0; i < model.means.size(); ++i) {
+    const double x = (i % 3 == 0 ? 1 : -1) * double(model.means[i]);
+    lo = std::min(lo, x);
+    hi = std::max(hi, x);
   }
   const auto fits = [&](int bits) {
     return std::ldexp(hi, bits) < 8388607.5 &&
@@ -335,7 +349,8 @@ std::string EncodeSpz(const GaussianModel& model,
   raw.push_back(char(fractional_bits));
   raw.push_back(0);  // flags
   raw.push_back(0);  // reserved
-  for (float x : model.means) {
+  for (size_t i = 0; i < model.means.size(); ++i) {
+    const double x = (i % 3 == 0 ? 1 : -1) * double(model.means[i]);
     const int32_t fixed = int32_t(std::lround(std::ldexp(x, fractional_bits)));
     for (int k = 0; k < 3; ++k) raw.push_back(char((fixed >> (8 * k)) & 0xff));
   }
@@ -362,7 +377,9 @@ std::string EncodeSpz(const GaussianModel& model,
       const int bucket = j < 3 ? 8 : 16;  // 5 bits for degree 1, 4 above
       for (int c = 0; c < 3; ++c) {
         raw.push_back(char(QuantizeSh(
-            model.sh_rest[i * model.sh_rest_stride() + 3 * j + c], bucket)));
+            kAxisFlipSh[j] *
+                model.sh_rest[i * model.sh_rest_stride() + 3 * j + c],
+            bucket)));
       }
     }
   }

@@ -5,10 +5,12 @@
 // + 0.5), log-scales (8-bit, (s + 10) * 16), rotations (version 2: x y z of
 // the w >= 0 quaternion, 8 bits each; version 3: "smallest three", 2 + 3 x 10
 // bits) and SH (8 bits, x * 128 + 128, coefficient-major, rgb inner).
-// Coordinates are read and written as stored, with no axis flip, as
-// PlayCanvas's splat-transform does: a file made by Niantic's own ply-to-spz
-// converter (which stores y and z negated, "RUB") reads rotated by 180
-// degrees about x (see docs/formats.md).
+// The format stores the RUB axes (x right, y up, z back) and 3DGS PLYs the
+// RDF axes (y down, z forward): as Niantic's library and PlayCanvas's
+// splat-transform 2.x do, the reader turns RUB into RDF and the writer RDF
+// into RUB (y and z of positions and quaternions negated, SH coefficients
+// signed by their parity), so that PLY -> SPZ -> PLY keeps the scene where
+// it was (see docs/formats.md).
 #pragma once
 
 #include <cstddef>

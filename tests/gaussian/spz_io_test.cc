@@ -116,6 +116,9 @@ double QuatError(const float* a, const float* b) {
   return worst;
 }
 
+// The file holds RUB axes; the model gets RDF: y and z of positions and
+// quaternions negated, SH coefficients signed by parity (degree 1: y z x ->
+// - - +; degree 2: xy yz zz xz xx-yy -> - + + - +).
 TEST(SpzIo, DecodesHandBuiltVersion3Values) {
   std::string raw = Header(3, 2, 1, 12);
   // Positions, 24-bit little-endian two's complement, 12 fractional bits.
@@ -142,8 +145,8 @@ TEST(SpzIo, DecodesHandBuiltVersion3Values) {
   EXPECT_EQ(info.fractional_bits, 12);
   ASSERT_EQ(m.size(), 2u);
   ASSERT_EQ(m.sh_degree, 1);
-  const float means[] = {1.5f,       -2.25f,           0.f,
-                         1.f / 4096, 8388607.f / 4096, -2048.f};
+  const float means[] = {1.5f,  2.25f, -0.f, 1.f / 4096, -8388607.f / 4096,
+                         2048.f};
   for (int k = 0; k < 6; ++k) EXPECT_FLOAT_EQ(m.means[k], means[k]) << k;
   EXPECT_EQ(m.opacity_logits[0], -kOpacityLogitLimit);  // alpha 0: not -Inf
   EXPECT_NEAR(m.opacity_logits[1], std::log(191.0 / 64.0), 1e-6);
@@ -157,15 +160,35 @@ TEST(SpzIo, DecodesHandBuiltVersion3Values) {
   for (int k = 0; k < 4; ++k) EXPECT_FLOAT_EQ(m.quats[k], identity[k]);
   const double small = std::sqrt(0.5) * 361 / 511;
   const double big = std::sqrt(1 - 3 * small * small);
-  const double second[] = {small, big, small, small};  // w x y z
+  const double second[] = {small, big, -small, -small};  // w x y z
   for (int k = 0; k < 4; ++k) EXPECT_NEAR(m.quats[4 + k], second[k], 1e-6);
   // SH bytes: (b - 128) / 128, coefficient-major with rgb inner, as the
   // model keeps them.
+  // Coefficients 0 and 1 (y and z) change sign, 2 (x) does not.
   EXPECT_FLOAT_EQ(m.sh_rest[0], 0.f);
-  EXPECT_FLOAT_EQ(m.sh_rest[1], -1.f);
-  EXPECT_FLOAT_EQ(m.sh_rest[2], 127 / 128.f);
-  EXPECT_FLOAT_EQ(m.sh_rest[3], 0.5f);
+  EXPECT_FLOAT_EQ(m.sh_rest[1], 1.f);
+  EXPECT_FLOAT_EQ(m.sh_rest[2], -127 / 128.f);
+  EXPECT_FLOAT_EQ(m.sh_rest[3], -0.5f);
   EXPECT_FLOAT_EQ(m.sh_rest[17], -0.5f);
+}
+
+TEST(SpzIo, ShSignsFollowTheAxisFlipForEveryCoefficient) {
+  // One Gaussian, degree 3, every SH byte 192 (+0.5): the decoded signs are
+  // the parities of the 15 basis functions under (x, -y, -z).
+  std::string raw = Header(3, 1, 3, 12);
+  raw += std::string(9, '\0') + "\x80" + std::string(6, '\x80');
+  PutU32(3u << 30, &raw);
+  raw += std::string(45, '\xc0');
+  const GaussianModel m = Decode(Gzip(raw));
+  const float signs[15] = {-1, -1, 1, -1, 1, 1, -1, 1, -1, 1, -1, -1, 1, -1, 1};
+  for (int j = 0; j < 15; ++j) {
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_EQ(m.sh_rest[3 * j + c], 0.5f * signs[j]) << j;
+    }
+  }
+  // The writer applies the same flip: the bytes come back as 192.
+  const GaussianModel reread = Decode(EncodeSpz(m));
+  EXPECT_EQ(reread.sh_rest, m.sh_rest);
 }
 
 TEST(SpzIo, DecodesVersion2Rotations) {
@@ -177,8 +200,8 @@ TEST(SpzIo, DecodesVersion2Rotations) {
   const GaussianModel m = Decode(Gzip(raw));
   const double x = 191 / 127.5 - 1, y = 64 / 127.5 - 1, z = 128 / 127.5 - 1;
   EXPECT_NEAR(m.quats[1], x, 1e-6);
-  EXPECT_NEAR(m.quats[2], y, 1e-6);
-  EXPECT_NEAR(m.quats[3], z, 1e-6);
+  EXPECT_NEAR(m.quats[2], -y, 1e-6);  // RUB to RDF
+  EXPECT_NEAR(m.quats[3], -z, 1e-6);
   EXPECT_NEAR(m.quats[0], std::sqrt(1 - x * x - y * y - z * z), 1e-6);
   EXPECT_EQ(m.opacity_logits[0], kOpacityLogitLimit);  // alpha 255
 }
