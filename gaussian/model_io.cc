@@ -80,6 +80,17 @@ GaussianFormat DetectGaussianFormat(const std::string& path) {
            "a zip archive (SOG?); watergs reads PLY, compressed PLY, .spz "
            "and .splat");
   }
+  // .splat has no header; text of the right size must not pass for one (a
+  // real record's colour and rotation bytes are rarely all printable).
+  const bool text =
+      !head.empty() && std::all_of(head.begin(), head.end(), [](uint8_t c) {
+        return (c >= 0x20 && c < 0x7f) || c == '\n' || c == '\r' || c == '\t';
+      });
+  if (text) {
+    FailAt(path,
+           "a text file, not a 3DGS model (PLY, compressed PLY, .spz or "
+           ".splat)");
+  }
   std::error_code ec;
   const uint64_t size = std::filesystem::file_size(path, ec);
   if (ec) FailAt(path, "cannot read file size: " + ec.message());

@@ -246,6 +246,20 @@ TEST(CompressedPlyIo, MortonOrderKeepsChunksCompact) {
   }
 }
 
+// splat-transform's code: 10 bits per axis over the bounding box,
+// interleaved with z highest and x lowest, so the corners of a cube come in
+// the order 4z + 2y + x.
+TEST(CompressedPlyIo, MortonOrderInterleavesZYX) {
+  const float corners[8][3] = {{1, 1, 1}, {0, 0, 0}, {1, 0, 1}, {0, 1, 0},
+                               {1, 1, 0}, {0, 0, 1}, {1, 0, 0}, {0, 1, 1}};
+  GaussianModel model = RandomModel(8, 0, 2);
+  for (int i = 0; i < 8; ++i) {
+    for (int k = 0; k < 3; ++k) model.means[3 * i + k] = corners[i][k];
+  }
+  EXPECT_EQ(MortonOrder(model),
+            (std::vector<uint32_t>{1, 6, 3, 4, 5, 2, 7, 0}));
+}
+
 TEST(CompressedPlyIo, RefusesTruncatedPaddedAndMalformedFiles) {
   const std::string good = EncodeCompressedPly(RandomModel(300, 1, 8));
   EXPECT_EQ(Decode(good).size(), 300u);

@@ -120,9 +120,16 @@ TEST(ModelIo, RefusesWhatNoReaderTakes) {
   const std::string empty = TempPath("empty.splat");
   AtomicWriteFile(empty, "");
   EXPECT_NE(Refusal(empty).find("not a 3DGS model"), std::string::npos);
+  const std::string binary = TempPath("noise.bin");
+  AtomicWriteFile(binary, std::string(27, '\xfe'));
+  EXPECT_NE(Refusal(binary).find("27 bytes is not a multiple of the 32-byte"),
+            std::string::npos);
+  // Text of a .splat's size is not taken for one.
   const std::string text = TempPath("notes.txt");
-  AtomicWriteFile(text, "some notes, 27 bytes long!\n");
-  EXPECT_NE(Refusal(text).find("27 bytes is not a multiple of the 32-byte"),
+  AtomicWriteFile(text,
+                  "these notes are 64 bytes long, a multiple of 32, "
+                  "and plain text\n");
+  EXPECT_NE(Refusal(text).find("a text file, not a 3DGS model"),
             std::string::npos);
   const std::string zip = TempPath("scene.sog");
   AtomicWriteFile(zip, std::string("PK\x03\x04", 4) + std::string(60, 'x'));

@@ -164,8 +164,10 @@ TEST(PlyInfoCli, BadFileFailsWithOneLineNamingTheFile) {
   AtomicWriteFile(path, std::string("solid cube\nfacet normal 0 0 1\n"));
   const RunResult run = RunWatergs("ply_info --input_path " + path);
   EXPECT_NE(run.exit_code, 0);
-  EXPECT_EQ(run.output, "error: " + path +
-                            ": not a PLY file (does not start with 'ply')\n");
+  EXPECT_EQ(run.output,
+            "error: " + path +
+                ": a text file, not a 3DGS model (PLY, compressed PLY, .spz "
+                "or .splat)\n");
   const RunResult missing = RunWatergs("ply_info");
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.output.find("input_path"), std::string::npos);
