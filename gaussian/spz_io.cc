@@ -2,6 +2,7 @@
 #include "gaussian/spz_io.h"
 
 #include <zlib.h>
+#include <zstd.h>
 
 #include <algorithm>
 #include <array>
@@ -203,18 +204,42 @@ uint8_t QuantizeSh(float x, int bucket) {
   return uint8_t(std::clamp(q, 0, 255));
 }
 
-}  // namespace
+struct SpzHeader {
+  uint32_t version = 0;
+  uint64_t n = 0;
+  int sh_degree = 0;
+  int fractional_bits = 0;
+  uint8_t flags = 0;
+};
 
-GaussianModel DecodeSpz(const std::string& name, const uint8_t* data,
-                        size_t size, SpzInfo* info) {
-  if (size >= 8 && codec::LoadU32(data) == kMagic) {
-    FailAt(name, "an uncompressed NGSP stream (SPZ version " +
-                     std::to_string(codec::LoadU32(data + 4)) +
-                     "); watergs reads SPZ versions 2 and 3 (gzip)");
+// Attribute bytes of N Gaussians in file order: positions, alphas, colours,
+// scales, rotations, SH.
+std::array<uint64_t, 6> StreamSizes(const SpzHeader& h) {
+  const uint64_t n = h.n;
+  return {9 * n,
+          n,
+          3 * n,
+          3 * n,
+          (h.version == 2 ? 3 : 4) * n,
+          3 * uint64_t(ShDim(h.sh_degree)) * n};
+}
+
+void CheckHeader(const std::string& name, const SpzHeader& h) {
+  if (h.version < 2 || h.version > 4) {
+    FailAt(name, "SPZ version " + std::to_string(h.version) +
+                     " is not supported (versions 2, 3 and 4 are)");
   }
-  if (size < 2 || data[0] != 0x1f || data[1] != 0x8b) {
-    FailAt(name, "not an SPZ file (no gzip signature)");
+  if (h.sh_degree > 3) {
+    FailAt(name, "SH degree " + std::to_string(h.sh_degree) +
+                     " is not supported (watergs models hold degrees 0-3)");
   }
+}
+
+// Versions 2 and 3: one gzip stream of the 16-byte header and the
+// attributes.
+std::vector<uint8_t> ReadGzipPayload(const std::string& name,
+                                     const uint8_t* data, size_t size,
+                                     SpzHeader* h) {
   GzipReader gzip(name, data, size);
   std::vector<uint8_t> bytes;
   if (gzip.Read(kHeaderBytes, &bytes) < kHeaderBytes) {
@@ -224,26 +249,20 @@ GaussianModel DecodeSpz(const std::string& name, const uint8_t* data,
   if (codec::LoadU32(bytes.data()) != kMagic) {
     FailAt(name, "gzip data that is not SPZ (no NGSP magic)");
   }
-  const uint32_t version = codec::LoadU32(bytes.data() + 4);
-  const uint64_t n = codec::LoadU32(bytes.data() + 8);
-  const int sh_degree = bytes[12];
-  const int fractional_bits = bytes[13];
-  const uint8_t flags = bytes[14];
-  if (version != 2 && version != 3) {
-    FailAt(name, "SPZ version " + std::to_string(version) +
-                     " is not supported (versions 2 and 3 are)");
+  h->version = codec::LoadU32(bytes.data() + 4);
+  h->n = codec::LoadU32(bytes.data() + 8);
+  h->sh_degree = bytes[12];
+  h->fractional_bits = bytes[13];
+  h->flags = bytes[14];
+  CheckHeader(name, *h);
+  if (h->version == 4) FailAt(name, "SPZ version 4 inside gzip");
+  if (h->flags & kFlagExtensions) {
+    FailAt(name,
+           "SPZ extensions (flag 0x2) are not supported before "
+           "version 4");
   }
-  if (sh_degree > 3) {
-    FailAt(name, "SH degree " + std::to_string(sh_degree) +
-                     " is not supported (watergs models hold degrees 0-3)");
-  }
-  if (flags & kFlagExtensions) {
-    FailAt(name, "SPZ extensions (flag 0x2) are not supported");
-  }
-  const int dim = ShDim(sh_degree);
-  const uint64_t rotation_bytes = version == 2 ? 3 : 4;
-  const uint64_t per_gaussian = 9 + 1 + 3 + 3 + rotation_bytes + 3 * dim;
-  const uint64_t payload = n * per_gaussian;
+  uint64_t payload = 0;
+  for (uint64_t s : StreamSizes(*h)) payload += s;
   bytes.clear();
   while (bytes.size() < payload) {
     const size_t step =
@@ -251,7 +270,7 @@ GaussianModel DecodeSpz(const std::string& name, const uint8_t* data,
     if (gzip.Read(step, &bytes) < step) break;
   }
   if (bytes.size() < payload) {
-    FailAt(name, "truncated SPZ data: " + std::to_string(n) +
+    FailAt(name, "truncated SPZ data: " + std::to_string(h->n) +
                      " Gaussians need " + std::to_string(payload) +
                      " bytes after the header, the stream holds " +
                      std::to_string(bytes.size()));
@@ -266,10 +285,119 @@ GaussianModel DecodeSpz(const std::string& name, const uint8_t* data,
       FailAt(name, "truncated gzip stream (no end after the SPZ data)");
     }
   }
+  return bytes;
+}
+
+uint64_t LoadU64(const uint8_t* p) {
+  return uint64_t(codec::LoadU32(p)) | uint64_t(codec::LoadU32(p + 4)) << 32;
+}
+
+// Version 4: a 32-byte plaintext header (magic, version, count, SH degree,
+// fractional bits, flags, number of streams, byte offset of the table of
+// contents), extension records up to that offset (skipped), the table
+// (compressed and uncompressed size of each stream, u64 each) and the
+// attribute streams, each compressed with zstd on its own.
+std::vector<uint8_t> ReadZstdPayload(const std::string& name,
+                                     const uint8_t* data, size_t size,
+                                     SpzHeader* h) {
+  if (size < 32) FailAt(name, "truncated SPZ version 4 header");
+  h->version = codec::LoadU32(data + 4);
+  h->n = codec::LoadU32(data + 8);
+  h->sh_degree = data[12];
+  h->fractional_bits = data[13];
+  h->flags = data[14];
+  const int num_streams = data[15];
+  const uint64_t toc = codec::LoadU32(data + 16);
+  if (h->version != 4) {
+    FailAt(name, "an uncompressed NGSP stream of version " +
+                     std::to_string(h->version) +
+                     " (only version 4 is stored without gzip)");
+  }
+  CheckHeader(name, *h);
+  const auto sizes = StreamSizes(*h);
+  const int needed = sizes[5] > 0 ? 6 : 5;
+  if (num_streams != needed && !(num_streams == 6 && needed == 5)) {
+    FailAt(name, std::to_string(num_streams) +
+                     " attribute streams; SH "
+                     "degree " +
+                     std::to_string(h->sh_degree) + " needs " +
+                     std::to_string(needed));
+  }
+  if (toc < 32 || toc > size || (size - toc) / 16 < uint64_t(num_streams)) {
+    FailAt(name, "table of contents at byte " + std::to_string(toc) +
+                     " lies outside the " + std::to_string(size) +
+                     "-byte file");
+  }
+  uint64_t offset = toc + 16 * uint64_t(num_streams);
+  uint64_t payload = 0;
+  for (uint64_t s : sizes) payload += s;
+  // Checked before anything is allocated: each stream's sizes against the
+  // count and the file, and a compression ratio zstd can reach.
+  std::vector<std::pair<uint64_t, uint64_t>> streams;  // offset, size
+  for (int s = 0; s < num_streams; ++s) {
+    const uint64_t compressed = LoadU64(data + toc + 16 * s);
+    const uint64_t uncompressed = LoadU64(data + toc + 16 * s + 8);
+    if (uncompressed != sizes[s]) {
+      FailAt(name, "attribute stream " + std::to_string(s) + " holds " +
+                       std::to_string(uncompressed) + " bytes; " +
+                       std::to_string(h->n) + " Gaussians need " +
+                       std::to_string(sizes[s]));
+    }
+    if (compressed > size - offset) {
+      FailAt(name, "truncated SPZ data: attribute stream " + std::to_string(s) +
+                       " needs " + std::to_string(compressed) + " bytes, " +
+                       std::to_string(size - offset) + " are left");
+    }
+    if (uncompressed / 40000 > compressed) {
+      FailAt(name, "attribute stream " + std::to_string(s) +
+                       " claims a compression ratio zstd cannot reach");
+    }
+    streams.push_back({offset, compressed});
+    offset += compressed;
+  }
+  std::vector<uint8_t> bytes(payload);
+  uint64_t at = 0;
+  for (int s = 0; s < num_streams && at < payload; ++s) {
+    if (sizes[s] == 0) continue;
+    const size_t got =
+        ZSTD_decompress(bytes.data() + at, sizes[s], data + streams[s].first,
+                        streams[s].second);
+    if (ZSTD_isError(got)) {
+      FailAt(name, "corrupt zstd data in attribute stream " +
+                       std::to_string(s) + " (" + ZSTD_getErrorName(got) + ")");
+    }
+    if (got != sizes[s]) {
+      FailAt(name, "attribute stream " + std::to_string(s) + " holds " +
+                       std::to_string(got) + " bytes, not " +
+                       std::to_string(sizes[s]));
+    }
+    at += sizes[s];
+  }
+  return bytes;
+}
+
+}  // namespace
+
+GaussianModel DecodeSpz(const std::string& name, const uint8_t* data,
+                        size_t size, SpzInfo* info) {
+  SpzHeader h;
+  std::vector<uint8_t> bytes;
+  if (size >= 4 && codec::LoadU32(data) == kMagic) {
+    bytes = ReadZstdPayload(name, data, size, &h);
+  } else if (size >= 2 && data[0] == 0x1f && data[1] == 0x8b) {
+    bytes = ReadGzipPayload(name, data, size, &h);
+  } else {
+    FailAt(name, "not an SPZ file (no gzip signature or NGSP magic)");
+  }
+  const uint64_t n = h.n;
+  const uint32_t version = h.version;
+  const int sh_degree = h.sh_degree;
+  const int fractional_bits = h.fractional_bits;
+  const uint64_t rotation_bytes = version == 2 ? 3 : 4;
   if (info != nullptr) {
     info->version = int(version);
     info->fractional_bits = fractional_bits;
-    info->antialiased = (flags & kFlagAntialiased) != 0;
+    info->antialiased = (h.flags & kFlagAntialiased) != 0;
   }
 
   GaussianModel model;

@@ -4,7 +4,7 @@
 set -euo pipefail
 pkgs=(build-essential cmake git pkg-config clang-format
   libeigen3-dev libopencv-dev libceres-dev libboost-program-options-dev
-  libgoogle-glog-dev libgtest-dev libgmock-dev nlohmann-json3-dev libnanoflann-dev libomp-dev zlib1g-dev
+  libgoogle-glog-dev libgtest-dev libgmock-dev nlohmann-json3-dev libnanoflann-dev libomp-dev zlib1g-dev libzstd-dev
   colmap)
 # Regeneration only: datasets_scripts/make_demo_scene.sh (POV-Ray renders) and the download_*.sh scripts.
 # The committed demo scene needs none of them; they are small, so they are installed anyway.

@@ -134,9 +134,10 @@ TEST(ModelIo, RefusesWhatNoReaderTakes) {
   const std::string zip = TempPath("scene.sog");
   AtomicWriteFile(zip, std::string("PK\x03\x04", 4) + std::string(60, 'x'));
   EXPECT_NE(Refusal(zip).find("zip archive (SOG?)"), std::string::npos);
-  const std::string v4 = TempPath("v4.spz");
-  AtomicWriteFile(v4, std::string("NGSP\x04\0\0\0", 8) + std::string(24, 'x'));
-  EXPECT_NE(Refusal(v4).find("SPZ version 4"), std::string::npos);
+  const std::string v5 = TempPath("v5.spz");
+  AtomicWriteFile(v5, std::string("NGSP\x05\0\0\0", 8) + std::string(24, 'x'));
+  EXPECT_NE(Refusal(v5).find("uncompressed NGSP stream of version 5"),
+            std::string::npos);
   // A cut file of each format names the problem.
   const GaussianModel model = RandomModel(300, 1, 5);
   const std::string spz = EncodeSpz(model);

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 #include <zlib.h>
+#include <zstd.h>
 
 #include <cmath>
 #include <cstring>
@@ -132,11 +133,10 @@ TEST(SpzIo, DecodesHandBuiltVersion3Values) {
   raw += std::string("\x80\xff\x00\x80\x80\x80", 6);  // colours
   raw += std::string("\xa0\x00\xff\xa0\xa0\xa0", 6);  // scales
   PutU32(3u << 30, &raw);  // w largest, x y z = 0: the identity
-  // x largest and negative: stored negated, y z w = -0.5 each (sign bit set
-  // after the negation: 0), magnitude 361 / 511 * sqrt(1/2) = 0.49955.
-  uint32_t word = 0;
-  for (int k = 0; k < 3; ++k) word = word << 10 | 361u;
-  PutU32(word, &raw);
+  // x largest (index 0 in the top 2 bits), then y z w from the high bits
+  // down, each a sign bit and 9 bits of |v| / sqrt(1/2) * 511: y -100, z
+  // 200, w 361.
+  PutU32(0u << 30 | (512u | 100u) << 20 | 200u << 10 | 361u, &raw);
   raw += std::string("\x80\x00\xff\xc0\x80\x80\x80\x80\x80", 9);
   raw += std::string("\x80\x80\x80\x80\x80\x80\x80\x80\x40", 9);
   SpzInfo info;
@@ -158,9 +158,10 @@ TEST(SpzIo, DecodesHandBuiltVersion3Values) {
   EXPECT_FLOAT_EQ(m.log_scales[2], 255 / 16.f - 10);
   const float identity[] = {1, 0, 0, 0};
   for (int k = 0; k < 4; ++k) EXPECT_FLOAT_EQ(m.quats[k], identity[k]);
-  const double small = std::sqrt(0.5) * 361 / 511;
-  const double big = std::sqrt(1 - 3 * small * small);
-  const double second[] = {small, big, -small, -small};  // w x y z
+  const double y = -std::sqrt(0.5) * 100 / 511, z = std::sqrt(0.5) * 200 / 511,
+               w = std::sqrt(0.5) * 361 / 511;
+  const double x = std::sqrt(1 - y * y - z * z - w * w);
+  const double second[] = {w, x, -y, -z};  // RDF: y and z negated
   for (int k = 0; k < 4; ++k) EXPECT_NEAR(m.quats[4 + k], second[k], 1e-6);
   // SH bytes: (b - 128) / 128, coefficient-major with rgb inner, as the
   // model keeps them.
@@ -294,8 +295,12 @@ TEST(SpzIo, RefusesTruncatedAndCorruptFiles) {
 }
 
 TEST(SpzIo, RefusesUnsupportedHeaders) {
-  std::string v4 = Header(4, 0, 0, 12);
-  EXPECT_NE(Refusal(v4).find("uncompressed NGSP stream (SPZ version 4)"),
+  EXPECT_NE(Refusal(Header(4, 0, 0, 12)).find("truncated SPZ version 4"),
+            std::string::npos);
+  EXPECT_NE(Refusal(Header(3, 0, 0, 12) + std::string(16, '\0'))
+                .find("uncompressed NGSP stream of version 3"),
+            std::string::npos);
+  EXPECT_NE(Refusal(Gzip(Header(4, 0, 0, 12))).find("version 4 inside gzip"),
             std::string::npos);
   EXPECT_NE(Refusal(Gzip(Header(5, 0, 0, 12))).find("SPZ version 5"),
             std::string::npos);
@@ -310,6 +315,89 @@ TEST(SpzIo, RefusesUnsupportedHeaders) {
             std::string::npos);
   // An empty model is valid.
   EXPECT_EQ(Decode(Gzip(Header(3, 0, 2, 12))).size(), 0u);
+}
+
+// Version 4: a plaintext header with the table of contents' offset, the
+// table (compressed and uncompressed size of each stream) and each
+// attribute stream compressed with zstd. The same attributes as a version
+// 3 file decode to the same model; extension records before the table are
+// skipped.
+std::string Version4(const std::string& v3_raw, uint32_t n, int sh_degree,
+                     const std::string& extension = "") {
+  const size_t dim = 3 * (NumShCoeffs(sh_degree) - 1);
+  const size_t sizes[6] = {9 * n, n, 3 * n, 3 * n, 4 * n, dim * n};
+  const int streams = dim > 0 ? 6 : 5;
+  std::string out = "NGSP";
+  PutU32(4, &out);
+  PutU32(n, &out);
+  out += char(sh_degree);
+  out += char(12);
+  out += char(extension.empty() ? 0 : 2);
+  out += char(streams);
+  PutU32(uint32_t(32 + extension.size()), &out);
+  out += std::string(12, '\0');
+  out += extension;
+  std::string toc, body;
+  size_t at = 16;  // after the version 3 header
+  for (int s = 0; s < streams; ++s) {
+    const std::string plain = v3_raw.substr(at, sizes[s]);
+    at += sizes[s];
+    std::string packed(ZSTD_compressBound(plain.size()), '\0');
+    packed.resize(ZSTD_compress(packed.data(), packed.size(), plain.data(),
+                                plain.size(), 3));
+    for (uint64_t v : {uint64_t(packed.size()), uint64_t(plain.size())}) {
+      PutU32(uint32_t(v), &toc);
+      PutU32(uint32_t(v >> 32), &toc);
+    }
+    body += packed;
+  }
+  return out + toc + body;
+}
+
+TEST(SpzIo, Version4StreamsDecodeAsVersion3) {
+  for (int degree : {0, 2}) {
+    const GaussianModel model = RandomModel(300, degree, 12);
+    // The version 3 bytes, inflated.
+    const std::string gz = EncodeSpz(model);
+    z_stream z{};
+    ASSERT_EQ(inflateInit2(&z, 16 + MAX_WBITS), Z_OK);
+    std::string raw(1 << 20, '\0');
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(gz.data()));
+    z.avail_in = uInt(gz.size());
+    z.next_out = reinterpret_cast<Bytef*>(raw.data());
+    z.avail_out = uInt(raw.size());
+    ASSERT_EQ(inflate(&z, Z_FINISH), Z_STREAM_END);
+    raw.resize(raw.size() - z.avail_out);
+    inflateEnd(&z);
+    const GaussianModel v3 = Decode(gz);
+    SpzInfo info;
+    const std::string v4 = Version4(raw, 300, degree, "ext-record");
+    const GaussianModel m = Decode(v4, &info);
+    EXPECT_EQ(info.version, 4);
+    EXPECT_EQ(m.sh_degree, degree);
+    EXPECT_EQ(m.means, v3.means);
+    EXPECT_EQ(m.quats, v3.quats);
+    EXPECT_EQ(m.sh_rest, v3.sh_rest);
+    EXPECT_EQ(m.opacity_logits, v3.opacity_logits);
+    // Cut, corrupted or with a stream size that disagrees with the count.
+    EXPECT_NE(Refusal(v4.substr(0, v4.size() - 7)).find("truncated"),
+              std::string::npos);
+    // zstd frames carry no checksum here: a flipped byte may decode to
+    // other values, but never to a crash or a non-finite value.
+    std::string corrupt = v4;
+    corrupt[corrupt.size() - 40] ^= 0x5a;
+    try {
+      EXPECT_EQ(Decode(corrupt).CountNonFinite(), 0u);
+    } catch (const Error&) {
+    }
+    corrupt = v4;
+    corrupt[v4.find("ext-record") + 10 + 5 * 16 + 6] ^= 0x5a;  // a frame header
+    Refusal(corrupt);
+    std::string wrong = v4;
+    wrong[32 + 10 + 8] ^= 1;  // uncompressed size of the positions
+    EXPECT_NE(Refusal(wrong).find("attribute stream 0 holds"),
+              std::string::npos);
+  }
 }
 
 TEST(SpzIo, WriterRefusesNonFiniteModels) {
