@@ -10,8 +10,11 @@
 #include <numeric>
 #include <sstream>
 
+#include "gaussian/compressed_ply_io.h"
 #include "gaussian/error.h"
 #include "gaussian/sh.h"
+#include "gaussian/splat_io.h"
+#include "gaussian/spz_io.h"
 #include "gaussian/text_util.h"
 
 namespace watergs {
@@ -261,6 +264,42 @@ void QuantizeLinear(int bits, GaussianModel* model) {
   }
 }
 
+void ApplyCodec(GaussianFormat codec, int spz_version, const GaussianModel& in,
+                GaussianModel* out, std::vector<uint32_t>* source) {
+  IdentitySource(in.size(), source);
+  std::string bytes;
+  auto data = [&bytes] {
+    return reinterpret_cast<const uint8_t*>(bytes.data());
+  };
+  switch (codec) {
+    case GaussianFormat::kSpz:
+      bytes = EncodeSpz(in, {spz_version});
+      *out = DecodeSpz("spz codec", data(), bytes.size());
+      break;
+    case GaussianFormat::kCompressedPly:
+      bytes = EncodeCompressedPly(in, source);
+      *out = DecodeCompressedPly("compressed_ply codec", data(), bytes.size());
+      break;
+    case GaussianFormat::kSplat:
+      bytes = EncodeSplat(in);
+      // .splat cannot hold 0 Gaussians; the round trip of none is none.
+      if (in.size() == 0) {
+        *out = GaussianModel();
+        out->sh_degree = 0;
+      } else {
+        *out = DecodeSplat("splat codec", data(), bytes.size());
+      }
+      break;
+    case GaussianFormat::kPly:
+      *out = in;
+      break;
+  }
+  if (out->sh_degree != in.sh_degree) {
+    out->sh_degree = in.sh_degree;
+    out->sh_rest.assign(out->size() * out->sh_rest_stride(), 0.f);
+  }
+}
+
 ModelAttackSpec ParseModelAttack(const std::string& text) {
   std::string name, args;
   SplitNameArgs(text, &name, &args);
@@ -303,10 +342,25 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
       Fail("--attack: '" + Printable(text) +
            "': the opacity threshold must be in [0, 1]");
     }
+  } else if (name == "spz") {
+    spec.kind = ModelAttackKind::kCodec;
+    spec.codec = GaussianFormat::kSpz;
+    if (!args.empty()) {
+      if (args != "2" && args != "3") {
+        Fail("--attack: '" + Printable(text) + "': SPZ version 2 or 3");
+      }
+      spec.spz_version = args == "2" ? 2 : 3;
+    }
+  } else if (name == "compressed_ply" || name == "splat") {
+    no_args();
+    spec.kind = ModelAttackKind::kCodec;
+    spec.codec = name == "splat" ? GaussianFormat::kSplat
+                                 : GaussianFormat::kCompressedPly;
   } else {
     Fail("--attack: unknown attack '" + Printable(text) +
          "' (identity, gn:SIGMA, dropout:P, crop:P, sh0, fp16, quant:BITS, "
-         "shuffle, similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ], prune:T)");
+         "shuffle, similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ], prune:T, "
+         "spz[:VERSION], compressed_ply, splat)");
   }
   return spec;
 }
@@ -350,6 +404,11 @@ std::string ToString(const ModelAttackSpec& spec) {
       out << "prune:" << spec.opacity_threshold;
       return out.str();
     }
+    case ModelAttackKind::kCodec:
+      if (spec.codec == GaussianFormat::kSpz) {
+        return "spz:" + std::to_string(spec.spz_version);
+      }
+      return GaussianFormatName(spec.codec);
   }
   return "?";
 }
@@ -379,6 +438,9 @@ void ApplyModelAttack(const ModelAttackSpec& spec, const GaussianModel& in,
       out->Filter(keep);
       return;
     }
+    case ModelAttackKind::kCodec:
+      ApplyCodec(spec.codec, spec.spz_version, in, out, source);
+      return;
     default:
       break;
   }

@@ -15,6 +15,7 @@
 #include "distortion/distortion_layer.h"
 #include "gaussian/camera.h"
 #include "gaussian/gaussian_model.h"
+#include "gaussian/model_io.h"
 
 namespace watergs {
 
@@ -70,7 +71,8 @@ enum class ModelAttackKind {
   kQuantize,
   kShuffle,
   kSimilarity,
-  kPrune
+  kPrune,
+  kCodec
 };
 
 // One attack on a model.
@@ -85,11 +87,23 @@ struct ModelAttackSpec {
   double opacity_threshold = 0.0;
   // kSimilarity: the scene transform.
   SimilarityTransform similarity;
+  // kCodec: the file format whose real encoder and decoder are applied
+  // (kSpz, kCompressedPly or kSplat), and the SPZ version (2 or 3).
+  GaussianFormat codec = GaussianFormat::kSpz;
+  int spz_version = 3;
 };
+
+// The model after a round trip through a file format's encoder and decoder
+// (in memory): spz (version 2 or 3), compressed_ply (Morton-ordered: source
+// gives each output Gaussian's input index) or splat (SH above degree 0
+// dropped, then zero-padded so the model keeps its SH degree and layout).
+void ApplyCodec(GaussianFormat codec, int spz_version, const GaussianModel& in,
+                GaussianModel* out, std::vector<uint32_t>* source);
 
 // Parses one attack: identity | gn:SIGMA | dropout:P | crop:P | sh0 | fp16 |
 // quant:BITS (quant = quant:8) | shuffle | similarity:DEG,TX,TY,TZ,S[,AX,AY,
-// AZ] | prune:T. Throws Error naming the text.
+// AZ] | prune:T | spz[:VERSION] (spz = spz:3) | compressed_ply | splat.
+// Throws Error naming the text.
 ModelAttackSpec ParseModelAttack(const std::string& text);
 // Comma-separated attacks; an item starting with a digit, sign or '.'
 // continues the previous one's arguments (so "similarity:30,1,0,0,2,sh0" is

@@ -12,8 +12,11 @@
 
 #include "fuzz/fuzz_support.h"
 #include "gaussian/checkpoint.h"
+#include "gaussian/compressed_ply_io.h"
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
+#include "gaussian/splat_io.h"
+#include "gaussian/spz_io.h"
 #include "plugin/camera_models.h"
 #include "watermark/hidden_model.h"
 #include "watermark/network_file.h"
@@ -49,6 +52,26 @@ void WritePlySeeds(const std::string& out) {
   mixed.properties.push_back({"confidence", PlyType::kInt16, "int16"});
   mixed.ZeroExtras(2);
   WritePly(SeedPath(out, "ply", "mixed_sh1.ply"), SmallModel(2, 1, 6), mixed);
+}
+
+// The quantised formats, from the project's own writers.
+void WriteCodecSeeds(const std::string& out) {
+  for (int degree = 0; degree <= 3; ++degree) {
+    const GaussianModel model = SmallModel(3 + degree, degree, 20 + degree);
+    const std::string name = "sh" + std::to_string(degree);
+    WriteSpz(SeedPath(out, "spz", name + "_v3.spz"), model);
+    WriteSpz(SeedPath(out, "spz", name + "_v2.spz"), model, {2});
+    WriteCompressedPly(
+        SeedPath(out, "compressed_ply", name + ".compressed.ply"), model);
+  }
+  WriteSpz(SeedPath(out, "spz", "empty.spz"), SmallModel(0, 0, 30));
+  WriteCompressedPly(SeedPath(out, "compressed_ply", "empty.compressed.ply"),
+                     SmallModel(0, 1, 31));
+  // More than one chunk of 256.
+  WriteCompressedPly(SeedPath(out, "compressed_ply", "chunks.compressed.ply"),
+                     SmallModel(300, 0, 32));
+  WriteSplat(SeedPath(out, "splat", "one.splat"), SmallModel(1, 0, 33));
+  WriteSplat(SeedPath(out, "splat", "five.splat"), SmallModel(5, 2, 34));
 }
 
 void WriteColmapSeeds(const std::string& out) {
@@ -225,6 +248,7 @@ int main(int argc, char** argv) {
   const std::string out = argv[1];
   try {
     watergs::fuzz::WritePlySeeds(out);
+    watergs::fuzz::WriteCodecSeeds(out);
     watergs::fuzz::WriteColmapSeeds(out);
     watergs::fuzz::WriteCheckpointSeeds(out);
     watergs::fuzz::WriteNetworkSeeds(out);

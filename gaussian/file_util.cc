@@ -138,8 +138,11 @@ void AtomicWriteFiles(
   // replaced: a failure on the last file leaves all of them as they were.
   std::vector<std::string> temporaries;
   try {
-    for (const auto& [path, bytes] : files) {
-      temporaries.push_back(WriteTemporary(path, [&](std::ostream& out) {
+    // (Not a structured binding: clang 14, the fuzz build's compiler, cannot
+    // capture one in a lambda.)
+    for (const auto& file : files) {
+      const std::string& bytes = file.second;
+      temporaries.push_back(WriteTemporary(file.first, [&](std::ostream& out) {
         out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
       }));
     }

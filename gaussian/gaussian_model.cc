@@ -1,6 +1,8 @@
 #include "gaussian/gaussian_model.h"
 
+#include <algorithm>
 #include <cmath>
+#include <ostream>
 
 namespace watergs {
 namespace {
@@ -63,6 +65,27 @@ void GaussianModel::AppendFrom(const GaussianModel& other, size_t i) {
   append(opacity_logits, other.opacity_logits, 1);
   append(sh_dc, other.sh_dc, 3);
   append(sh_rest, other.sh_rest, sh_rest_stride());
+}
+
+float AlphaToOpacityLogit(double alpha) {
+  if (std::isnan(alpha)) return static_cast<float>(alpha);
+  if (alpha <= 0) return -kOpacityLogitLimit;
+  if (alpha >= 1) return kOpacityLogitLimit;
+  const double logit = std::log(alpha / (1.0 - alpha));
+  return static_cast<float>(
+      std::clamp<double>(logit, -kOpacityLogitLimit, kOpacityLogitLimit));
+}
+
+double OpacityLogitToAlpha(float logit) {
+  return 1.0 / (1.0 + std::exp(-static_cast<double>(logit)));
+}
+
+void WarnInfinitiesReplaced(const std::string& path, size_t count,
+                            std::ostream* out) {
+  if (count == 0 || out == nullptr) return;
+  *out << "warning: " << path << ": " << count
+       << " infinite opacity logits or log-scales read as what viewers "
+          "render (logit +-20 = alpha 0 or 1, log-scale -20 = flat)\n";
 }
 
 float RgbToShDc(float rgb) { return (rgb - 0.5f) / kShC0; }

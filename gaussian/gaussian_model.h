@@ -3,6 +3,8 @@
 #pragma once
 
 #include <cstddef>
+#include <iosfwd>
+#include <string>
 #include <vector>
 
 namespace watergs {
@@ -43,6 +45,31 @@ struct GaussianModel {
   // Appends Gaussian i of `other` (same sh_degree) to this model.
   void AppendFrom(const GaussianModel& other, size_t i);
 };
+
+// Values a file may legitimately hold that are not finite: an opacity logit
+// of +-Inf (alpha exactly 1 or 0, what an 8-bit alpha of 255 or 0 decodes to)
+// and a log-scale of -Inf (a scale of 0, a flat Gaussian). Readers replace
+// them by what viewers render: logits +-kOpacityLogitLimit and log-scale
+// kLogScaleFloor. sigmoid(20) rounds to 1.0f and sigmoid(-20) = 2e-9 is far
+// below the 1/255 alpha under which rasterizers skip a Gaussian; exp(20) =
+// 4.9e8 and its square stay finite in float, so losses and gradients of a
+// model read this way stay finite; 20 is also far beyond the largest logit
+// an 8-bit alpha can state (logit(254/255) = 5.5). exp(-20) = 2e-9 scene
+// units is zero thickness at any scene scale.
+constexpr float kOpacityLogitLimit = 20.f;
+constexpr float kLogScaleFloor = -20.f;
+
+// Opacity logit of an alpha in [0, 1], clamped to +-kOpacityLogitLimit
+// (alpha 0 and 1 give -20 and +20, NaN gives NaN).
+float AlphaToOpacityLogit(double alpha);
+// sigmoid(logit).
+double OpacityLogitToAlpha(float logit);
+
+// The one warning line readers print when they replaced `count` infinite
+// values of `path` (see kOpacityLogitLimit); nothing if count is 0 or `out`
+// is null.
+void WarnInfinitiesReplaced(const std::string& path, size_t count,
+                            std::ostream* out);
 
 // SH DC coefficient for a colour in [0, 1]: (c - 0.5) / C0 (Inria's RGB2SH).
 float RgbToShDc(float rgb);

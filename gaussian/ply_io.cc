@@ -469,7 +469,18 @@ class VertexSink {
           value;
       return;
     }
-    const float f = static_cast<float>(value);
+    float f = static_cast<float>(value);
+    if (std::isinf(f)) {
+      // What a quantised file legitimately decodes to: alpha 0 or 1, scale 0.
+      const Field field = roles_[property].field;
+      if (field == Field::kOpacity) {
+        f = f > 0 ? kOpacityLogitLimit : -kOpacityLogitLimit;
+        ++replaced_;
+      } else if (field == Field::kLogScale && f < 0) {
+        f = kLogScaleFloor;
+        ++replaced_;
+      }
+    }
     (*s.array)[vertex * s.stride + s.offset] = f;
     if (!std::isfinite(f)) {
       if (non_finite_ == 0) first_bad_ = {vertex, property};
@@ -478,6 +489,7 @@ class VertexSink {
   }
 
   size_t non_finite() const { return non_finite_; }
+  size_t replaced() const { return replaced_; }
   std::pair<size_t, size_t> first_bad() const { return first_bad_; }
 
  private:
@@ -486,6 +498,7 @@ class VertexSink {
   std::vector<Slot<std::vector<float>>> slots_;
   std::vector<Role> roles_;
   size_t non_finite_ = 0;
+  size_t replaced_ = 0;
   std::pair<size_t, size_t> first_bad_;
 };
 
@@ -766,6 +779,7 @@ PlyData ReadPly(const std::string& path, const PlyReadOptions& options) {
     ReadBinaryData(path, in, n, data.layout, sink);
   }
   data.non_finite_count = sink.non_finite();
+  data.replaced_infinities = sink.replaced();
   if (data.non_finite_count > 0 && !options.allow_non_finite) {
     const auto [vertex, property] = sink.first_bad();
     FailAt(path, std::to_string(data.non_finite_count) +
@@ -773,6 +787,7 @@ PlyData ReadPly(const std::string& path, const PlyReadOptions& options) {
                      std::to_string(vertex) + ", property " +
                      Ascii(data.layout.properties[property].name) + ")");
   }
+  WarnInfinitiesReplaced(path, data.replaced_infinities, options.warnings);
   return data;
 }
 

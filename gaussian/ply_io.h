@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <iostream>
 #include <string>
 #include <vector>
 
@@ -94,7 +95,11 @@ PlyLayout InriaPlyLayout(int sh_degree, size_t n = 0);
 
 struct PlyReadOptions {
   // Load NaN/Inf model values instead of refusing the file (for inspection).
+  // +-Inf opacity logits and -Inf log-scales are never refused: they are
+  // replaced whatever this says (see kOpacityLogitLimit).
   bool allow_non_finite = false;
+  // Where the one warning line about replaced infinities goes (null: none).
+  std::ostream* warnings = &std::cerr;
 };
 
 struct PlyData {
@@ -102,8 +107,12 @@ struct PlyData {
   GaussianModel model;
   // The file's layout, extras included, to write the model back the same way.
   PlyLayout layout;
-  // Number of NaN/Inf values among the model parameters.
+  // Number of NaN/Inf values among the model parameters (not counting the
+  // replaced ones).
   size_t non_finite_count = 0;
+  // Number of +-Inf opacity logits and -Inf log-scales the file held, read
+  // as +-kOpacityLogitLimit and kLogScaleFloor (what viewers render).
+  size_t replaced_infinities = 0;
   // Size of the file in bytes.
   uint64_t file_size = 0;
   // Bytes of the header, end_header line included.
@@ -113,7 +122,10 @@ struct PlyData {
 // Reads a 3DGS PLY. Throws Error("<path>: <problem>") for anything it cannot
 // read: missing file, not a PLY, truncated header or data, vertex count that
 // does not fit the file, missing model properties, list properties, other
-// elements, an f_rest count other than 0/9/24/45, and (unless allowed) NaN/Inf.
+// elements, an f_rest count other than 0/9/24/45, and (unless allowed) NaN
+// and the infinities viewers cannot render (+Inf log-scales, infinite
+// positions, rotations or colours). +-Inf opacity logits and -Inf log-scales
+// are read as +-20 and -20, with one warning line (count and file).
 PlyData ReadPly(const std::string& path, const PlyReadOptions& options = {});
 
 // Writes `model` in the Inria layout (normals zero), atomically.

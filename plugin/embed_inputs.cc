@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "gaussian/loss.h"
+#include "gaussian/model_io.h"
 
 namespace watergs {
 
@@ -13,7 +14,7 @@ EmbedInputs LoadEmbedInputs(const std::string& input_path,
                             const WorkspaceOptions& workspace, Device device,
                             bool eval) {
   EmbedInputs in;
-  in.ply = ReadPly(input_path);
+  in.ply = ReadModelFile(input_path);
   in.decoder = LoadBitDecoder(decoder_path, device);
   in.message = ApplyKey(ParseMessage(message, in.decoder->NumBits()), key);
   in.workspace = std::make_unique<Workspace>(Workspace::Open(workspace));

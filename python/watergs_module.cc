@@ -37,6 +37,7 @@
 #include "gaussian/error.h"
 #include "gaussian/gaussian_model.h"
 #include "gaussian/image.h"
+#include "gaussian/model_io.h"
 #include "gaussian/ply_io.h"
 #include "gaussian/progress.h"
 #include "gaussian/rasterizer.h"
@@ -380,7 +381,7 @@ Model LoadModel(const std::string& path) {
   PlyData ply;
   {
     py::gil_scoped_release release;
-    ply = ReadPly(path);
+    ply = ReadModelFile(path);
   }
   return Model{std::move(ply.model), std::move(ply.layout), path};
 }

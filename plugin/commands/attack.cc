@@ -1,7 +1,11 @@
 // `watergs attack`: applies the 3D distortions of the fine-tuning layers and
 // the file attacks users meet (SH truncation, quantisation, shuffling, a
-// similarity transform, opacity pruning) to a PLY, for robustness evaluation
-// and for users checking their files. A similarity transform moves the scene
+// similarity transform, opacity pruning, the real encoders and decoders of
+// .spz, compressed PLY and .splat) to a model, for robustness evaluation and
+// for users checking their files. The input may be in any format the model
+// loader reads; the output's format follows its extension (.spz, .splat,
+// .compressed.ply; anything else is a PLY in the input's layout, Inria's
+// for a non-PLY input). A similarity transform moves the scene
 // away from the workspace's cameras: the transform is printed and written to
 // <output_path>.transform.txt for `watergs extract --scene_transform`.
 #include <iostream>
@@ -10,7 +14,7 @@
 #include "distortion/file_attacks.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/model_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 
@@ -30,14 +34,21 @@ int RunAttack(int argc, char** argv) {
       "quantisation, default 8), shuffle (Gaussians permuted), "
       "similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ] (whole scene rotated about the "
       "axis, default z, scaled and translated; SH rotated with it), prune:T "
-      "(Gaussians with opacity < T removed). The output keeps the input's PLY "
-      "layout.");
-  parser.AddRequired("input_path", &input_path, "PLY to attack");
+      "(Gaussians with opacity < T removed), spz[:2|3], compressed_ply, "
+      "splat (a round trip through that format's encoder and decoder). The "
+      "input is any model file (PLY, compressed PLY, .spz, .splat); the "
+      "output is written in the format its extension names (.spz, .splat, "
+      ".compressed.ply), otherwise as a PLY in the input's layout.");
+  parser.AddRequired("input_path", &input_path,
+                     "Model to attack (PLY, compressed PLY, .spz or .splat)");
   parser.AddRequired("attack", &attacks,
                      "identity | gn:SIGMA | dropout:P | crop:P | sh0 | fp16 | "
                      "quant:BITS | shuffle | similarity:DEG,TX,TY,TZ,S[,AX,AY,"
-                     "AZ] | prune:T [,...]");
-  parser.AddRequired("output_path", &output_path, "Attacked PLY to write");
+                     "AZ] | prune:T | spz[:VERSION] | compressed_ply | splat "
+                     "[,...]");
+  parser.AddRequired("output_path", &output_path,
+                     "Attacked model to write (.spz, .splat, .compressed.ply "
+                     "or a PLY)");
   parser.Add("seed", &seed, "Random seed");
   if (!parser.Parse(argc, argv)) return 0;
   if (SamePath(input_path, output_path)) {
@@ -46,7 +57,7 @@ int RunAttack(int argc, char** argv) {
   const std::vector<ModelAttackSpec> specs = ParseModelAttackList(attacks);
   // Before the work: a missing output folder fails at once.
   CheckOutputFile(output_path);
-  PlyData ply = ReadPly(input_path);
+  ModelData ply = ReadModelFile(input_path);
   std::mt19937_64 rng(static_cast<uint64_t>(seed));
   // parent[i]: index in the input file of output Gaussian i.
   std::vector<int64_t> parent(ply.model.size());
@@ -70,7 +81,7 @@ int RunAttack(int argc, char** argv) {
     std::cout << ToString(spec) << ": " << model.size() << " Gaussians\n";
   }
   ply.layout.RemapExtras(parent);
-  WritePly(output_path, model, ply.layout);
+  WriteModelFile(output_path, model, ply.layout);
   std::cout << "wrote " << output_path << " (" << model.size() << " of "
             << input_count << " Gaussians)\n";
   if (moved) {
@@ -86,6 +97,6 @@ int RunAttack(int argc, char** argv) {
 }  // namespace watergs
 
 WATERGS_COMMAND(attack,
-                "Attacks a PLY: 3D distortions, SH truncation, quantisation, "
-                "shuffling, similarity transform, opacity pruning",
+                "Attacks a model: 3D distortions, SH truncation, quantisation, "
+                "shuffling, similarity transform, opacity pruning, codecs",
                 watergs::RunAttack);

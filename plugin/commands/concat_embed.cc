@@ -72,7 +72,9 @@ ExtractionResult Decode(Rasterizer& rasterizer, const GaussianModel& model,
 }
 
 void AddOptions(OptionParser* parser, ConcatArgs* a) {
-  parser->AddRequired("input_path", &a->input_path, "Trained 3DGS PLY");
+  parser->AddRequired(
+      "input_path", &a->input_path,
+      "Trained 3DGS model (PLY, compressed PLY, .spz or .splat)");
   parser->AddRequired("workspace_path", &a->workspace.workspace_path,
                       "COLMAP workspace the model was trained on");
   parser->Add("sparse_path", &a->workspace.input_path,

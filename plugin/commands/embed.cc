@@ -231,7 +231,9 @@ int RunEmbed(int argc, char** argv) {
   OptionParser parser("embed",
                       "Embeds a WATER-GS watermark into a trained 3DGS model "
                       "by fine-tuning it against a frozen decoder.");
-  parser.AddRequired("input_path", &a.input_path, "Trained 3DGS PLY");
+  parser.AddRequired(
+      "input_path", &a.input_path,
+      "Trained 3DGS model (PLY, compressed PLY, .spz or .splat)");
   parser.AddRequired("workspace_path", &a.workspace.workspace_path,
                      "COLMAP workspace the model was trained on");
   parser.Add("sparse_path", &a.workspace.input_path,

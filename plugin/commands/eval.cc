@@ -13,7 +13,7 @@
 #include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/model_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/ownership_report.h"
@@ -96,8 +96,10 @@ int RunEval(int argc, char** argv) {
       "renders; BER, p-value and verdict under each model attack and each "
       "attack on the renders. Prints a Markdown table; --output_path P "
       "writes P.json and P.md.");
-  parser.AddRequired("raw_path", &raw_path, "The raw (unwatermarked) PLY");
-  parser.AddRequired("input_path", &input_path, "The watermarked PLY");
+  parser.AddRequired("raw_path", &raw_path, "The raw (unwatermarked) model");
+  parser.AddRequired(
+      "input_path", &input_path,
+      "The watermarked model (PLY, compressed PLY, .spz or .splat)");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
                      "COLMAP workspace (its images are the ground truth; "
                      "without them only the raw renders are compared)");
@@ -163,8 +165,8 @@ int RunEval(int argc, char** argv) {
   options.thresholds.present_p = present_p;
   options.seed = uint64_t(seed);
   options.show_progress = true;
-  const PlyData raw = ReadPly(raw_path);
-  const PlyData watermarked = ReadPly(input_path);
+  const ModelData raw = ReadModelFile(raw_path);
+  const ModelData watermarked = ReadModelFile(input_path);
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(decoder_path, parser.device());
   const Bits bits = ApplyKey(ParseMessage(message, decoder->NumBits()),

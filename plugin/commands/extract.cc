@@ -16,7 +16,7 @@
 #include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/model_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
@@ -81,7 +81,9 @@ int RunExtract(int argc, char** argv) {
       "binomial p-value under the null hypothesis of an unmarked model; "
       "'watermark present' at p <= --false_positive_rate, 'absent' above "
       "p = 0.01, 'inconclusive' between.");
-  parser.AddRequired("input_path", &input_path, "3DGS PLY to examine");
+  parser.AddRequired(
+      "input_path", &input_path,
+      "3DGS model to examine (PLY, compressed PLY, .spz or .splat)");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
                      "COLMAP workspace whose cameras are rendered");
   parser.Add("sparse_path", &workspace_options.input_path,
@@ -132,7 +134,7 @@ int RunExtract(int argc, char** argv) {
   // Before the work: a mistyped --json path fails at once.
   if (!json_path.empty()) CheckOutputFile(json_path);
 
-  const PlyData ply = ReadPly(input_path);
+  const ModelData ply = ReadModelFile(input_path);
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(decoder_path, parser.device());
   Bits expected;

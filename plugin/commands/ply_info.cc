@@ -1,6 +1,7 @@
-// `watergs ply_info`: summary of a 3DGS PLY file (count, SH degree, layout,
+// `watergs ply_info`: summary of a 3DGS model file (count, SH degree, layout,
 // attribute ranges in their activated units, NaN/Inf count, bytes per
-// Gaussian).
+// Gaussian). Reads every format the model loader does (PLY, compressed PLY,
+// .spz, .splat); the layout lines are a PLY's only.
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -9,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/ply_io.h"
+#include "gaussian/model_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 
@@ -173,18 +174,24 @@ int RunPlyInfo(int argc, char** argv) {
   std::string input_path;
   watergs::OptionParser parser(
       "ply_info",
-      "Prints a 3DGS PLY's Gaussian count, SH degree, layout, attribute "
-      "ranges and NaN/Inf count.");
-  parser.AddRequired("input_path", &input_path, "The .ply file");
+      "Prints a 3DGS model's format, Gaussian count, SH degree, layout, "
+      "attribute ranges and NaN/Inf count (PLY, compressed PLY, .spz or "
+      ".splat, told by content).");
+  parser.AddRequired("input_path", &input_path, "The model file");
   if (!parser.Parse(argc, argv)) return 0;
   watergs::PlyReadOptions options;
   options.allow_non_finite = true;  // report them instead of refusing
-  const watergs::PlyData data = watergs::ReadPly(input_path, options);
+  const watergs::ModelData data = watergs::ReadModelFile(input_path, options);
+  const bool ply = data.format == watergs::GaussianFormat::kPly;
   const watergs::GaussianModel& m = data.model;
   const int rest = m.sh_rest_stride();
   std::printf("File:            %s\n", input_path.c_str());
-  std::printf("Format:          %s %s\n", FormatName(data.layout.format),
-              data.layout.format_version.c_str());
+  if (ply) {
+    std::printf("Format:          %s %s\n", FormatName(data.layout.format),
+                data.layout.format_version.c_str());
+  } else {
+    std::printf("Format:          %s\n", data.format_detail.c_str());
+  }
   std::printf("File size:       %llu bytes (header %llu)\n",
               static_cast<unsigned long long>(data.file_size),
               static_cast<unsigned long long>(data.header_size));
@@ -195,15 +202,19 @@ int RunPlyInfo(int argc, char** argv) {
                 double(data.file_size) / m.size(),
                 double(data.file_size - data.header_size) / m.size());
   }
-  std::printf("Properties (%zu): %s\n", data.layout.properties.size(),
-              DescribeProperties(data.layout.properties).c_str());
-  std::vector<watergs::PlyProperty> extras;
-  for (int p : data.layout.ExtraPropertyIndices()) {
-    extras.push_back(data.layout.properties[p]);
+  if (ply) {
+    std::printf("Properties (%zu): %s\n", data.layout.properties.size(),
+                DescribeProperties(data.layout.properties).c_str());
+    std::vector<watergs::PlyProperty> extras;
+    for (int p : data.layout.ExtraPropertyIndices()) {
+      extras.push_back(data.layout.properties[p]);
+    }
+    std::printf("Extra properties: %s\n",
+                extras.empty() ? "none" : DescribeProperties(extras).c_str());
   }
-  std::printf("Extra properties: %s\n",
-              extras.empty() ? "none" : DescribeProperties(extras).c_str());
   std::printf("NaN/Inf values:  %zu\n", data.non_finite_count);
+  std::printf("Infinities read as +-20: %zu (opacity logits, log-scales)\n",
+              data.replaced_infinities);
   PrintRanges(m);
   const auto [implausible, total] = CountImplausible(m);
   if (implausible > total / 10) {
@@ -222,6 +233,6 @@ int RunPlyInfo(int argc, char** argv) {
 
 }  // namespace
 
-WATERGS_COMMAND(ply_info,
-                "Prints a 3DGS PLY's count, SH degree, layout, ranges, NaN/Inf",
-                RunPlyInfo);
+WATERGS_COMMAND(
+    ply_info, "Prints a 3DGS model's format, count, SH degree, ranges, NaN/Inf",
+    RunPlyInfo);

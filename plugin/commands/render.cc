@@ -10,7 +10,7 @@
 #include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/model_io.h"
 #include "gaussian/progress.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/trainer.h"
@@ -31,7 +31,8 @@ int RunRender(int argc, char** argv) {
                       "Renders a 3DGS PLY from a COLMAP workspace's cameras "
                       "to PNGs and prints PSNR/SSIM against its images (when "
                       "the workspace has its image folder).");
-  parser.AddRequired("input_path", &input_path, "The model .ply");
+  parser.AddRequired("input_path", &input_path,
+                     "The model (PLY, compressed PLY, .spz or .splat)");
   parser.AddRequired("workspace_path", &ws.workspace_path,
                      "COLMAP workspace (images/ and sparse/0)");
   parser.Add("sparse_path", &ws.input_path,
@@ -52,7 +53,7 @@ int RunRender(int argc, char** argv) {
   if (num_threads < 0) Fail("--num_threads must be >= 0");
   if (num_threads > 0) omp_set_num_threads(num_threads);
   const std::array<float, 3> bg = ParseBackground(background);
-  const PlyData ply = ReadPly(input_path);
+  const ModelData ply = ReadModelFile(input_path);
   if (sh_degree > ply.model.sh_degree || sh_degree < -1) {
     Fail("--sh_degree " + std::to_string(sh_degree) + " is not in -1.." +
          std::to_string(ply.model.sh_degree) + " for this model");

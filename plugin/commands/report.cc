@@ -15,7 +15,7 @@
 #include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/model_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/ownership_report.h"
@@ -59,9 +59,10 @@ int RunReport(int argc, char** argv) {
       "the commands that reproduce it. Reads the workspace's cameras as "
       "extract does (all, or --max_views spread evenly).");
   parser.AddRequired("raw_path", &request.raw_path,
-                     "The raw (unwatermarked) PLY");
+                     "The raw (unwatermarked) model");
   parser.AddRequired("input_path", &request.watermarked_path,
-                     "The watermarked PLY the claim is about");
+                     "The watermarked model the claim is about (PLY, "
+                     "compressed PLY, .spz or .splat)");
   parser.AddRequired("workspace_path", &request.workspace.workspace_path,
                      "COLMAP workspace whose cameras are rendered (its "
                      "images, if any, give PSNR/SSIM against ground truth)");
@@ -137,11 +138,11 @@ int RunReport(int argc, char** argv) {
   options.lpips_note = "not computed (--lpips_weights not given)";
 
   // Every input read before the work: a bad one fails at once.
-  const PlyData raw = ReadPly(request.raw_path);
-  const PlyData watermarked = ReadPly(request.watermarked_path);
+  const ModelData raw = ReadModelFile(request.raw_path);
+  const ModelData watermarked = ReadModelFile(request.watermarked_path);
   std::vector<GaussianModel> suspects;
   for (const std::string& path : request.suspect_paths) {
-    suspects.push_back(ReadPly(path).model);
+    suspects.push_back(ReadModelFile(path).model);
   }
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(request.decoder_path, parser.device());

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -251,6 +252,56 @@ TEST(FileAttacks, ParsesListsAndRefusesBadSpecs) {
         "similarity:1,0,0,0,0", "similarity:1,0,0,0,1,0,0,0", "sh0:1", "blur:2",
         "dropout:1.5"}) {
     EXPECT_THROW(ParseModelAttackList(bad), Error) << bad;
+  }
+}
+
+// spz, compressed_ply and splat run the formats' real encoders and decoders:
+// the model keeps its count and SH degree (splat's dropped SH as zeros),
+// moves by no more than the formats' steps, and renders nearly the same.
+TEST(FileAttacks, CodecAttacksRoundTripThroughTheFormats) {
+  const GaussianModel in = RandomScene(600, 3, 9);
+  const RenderCamera camera = TestCamera();
+  const ImageRGB before = Render(in, camera);
+  for (const char* attack : {"spz", "spz:2", "compressed_ply", "splat"}) {
+    const ModelAttackSpec spec = ParseModelAttack(attack);
+    EXPECT_EQ(spec.kind, ModelAttackKind::kCodec) << attack;
+    std::vector<uint32_t> source;
+    const GaussianModel out = Attacked(attack, in, &source);
+    ASSERT_EQ(out.size(), in.size()) << attack;
+    ASSERT_EQ(out.sh_degree, 3) << attack;
+    ASSERT_EQ(source.size(), in.size()) << attack;
+    EXPECT_EQ(out.CountNonFinite(), 0u) << attack;
+    std::vector<uint32_t> sorted = source;
+    std::sort(sorted.begin(), sorted.end());
+    for (size_t i = 0; i < sorted.size(); ++i) ASSERT_EQ(sorted[i], i);
+    double worst = 0;
+    bool moved = false;
+    for (size_t j = 0; j < out.size(); ++j) {
+      for (int k = 0; k < 3; ++k) {
+        const float a = in.means[3 * source[j] + k], b = out.means[3 * j + k];
+        worst = std::max(worst, double(std::abs(a - b)));
+        moved = moved || std::abs(in.log_scales[3 * source[j] + k] -
+                                  out.log_scales[3 * j + k]) > 1e-6;
+      }
+    }
+    // Positions: SPZ 2^-13, compressed PLY a chunk's range / 2046, .splat
+    // float32 (exact).
+    EXPECT_LE(worst, 2e-3) << attack;
+    if (std::string(attack) == "splat") {
+      EXPECT_EQ(*std::max_element(out.sh_rest.begin(), out.sh_rest.end()), 0.f);
+      EXPECT_EQ(*std::min_element(out.sh_rest.begin(), out.sh_rest.end()), 0.f);
+    } else {
+      EXPECT_TRUE(moved) << attack;
+      EXPECT_LT(MaxAbsDifference(before, Render(out, camera)), 0.25) << attack;
+    }
+  }
+  EXPECT_EQ(ToString(ParseModelAttack("spz")), "spz:3");
+  EXPECT_EQ(ToString(ParseModelAttack("spz:2")), "spz:2");
+  EXPECT_EQ(ToString(ParseModelAttack("compressed_ply")), "compressed_ply");
+  EXPECT_EQ(ToString(ParseModelAttack("splat")), "splat");
+  EXPECT_EQ(ParseModelAttackList("spz:2,splat").size(), 2u);
+  for (const char* bad : {"spz:4", "spz:x", "splat:1", "compressed_ply:8"}) {
+    EXPECT_THROW(ParseModelAttack(bad), Error) << bad;
   }
 }
 

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <limits>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -396,14 +397,68 @@ TEST(PlyIoErrors, NonFiniteRefusedByDefaultAndCountedOnRequest) {
   model.means[4] = std::numeric_limits<float>::quiet_NaN();
   model.sh_rest[9 * 3 + 2] = std::numeric_limits<float>::infinity();
   model.opacity_logits[7] = -std::numeric_limits<float>::infinity();
+  model.log_scales[5] = std::numeric_limits<float>::infinity();
   const std::string path = WriteCase("nan.ply", InriaBytes(model));
+  // The -Inf opacity is read as -20; NaN and the other infinities are not.
   ExpectRefused(path, "3 NaN/Inf values (first: vertex 1, property y)");
   PlyReadOptions allow;
   allow.allow_non_finite = true;
+  allow.warnings = nullptr;
   const PlyData data = ReadPly(path, allow);
   EXPECT_EQ(data.non_finite_count, 3u);
+  EXPECT_EQ(data.replaced_infinities, 1u);
   EXPECT_TRUE(std::isnan(data.model.means[4]));
+  EXPECT_EQ(data.model.opacity_logits[7], -kOpacityLogitLimit);
   EXPECT_EQ(data.model.CountNonFinite(), 3u);
+}
+
+// What a quantised file decoded to a PLY legitimately holds (alpha 0 or 1
+// as logits -+Inf, scale 0 as log-scale -Inf) is read as what viewers
+// render, with one warning line naming the count and the file; NaN in the
+// same places is still refused, and +Inf log-scales too.
+TEST(PlyIoErrors, InfiniteOpacityAndZeroScaleReadAsWhatViewersRender) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  GaussianModel model = RandomModel(2, 6, 9);
+  model.opacity_logits[0] = kInf;
+  model.opacity_logits[3] = -kInf;
+  model.opacity_logits[4] = -kInf;
+  model.log_scales[7] = -kInf;
+  const std::string path = WriteCase("inf_opacity.ply", InriaBytes(model));
+  std::ostringstream warnings;
+  PlyReadOptions options;
+  options.warnings = &warnings;
+  const PlyData data = ReadPly(path, options);
+  EXPECT_EQ(data.replaced_infinities, 4u);
+  EXPECT_EQ(data.non_finite_count, 0u);
+  EXPECT_EQ(data.model.CountNonFinite(), 0u);
+  EXPECT_EQ(data.model.opacity_logits[0], kOpacityLogitLimit);
+  EXPECT_EQ(data.model.opacity_logits[3], -kOpacityLogitLimit);
+  EXPECT_EQ(data.model.log_scales[7], kLogScaleFloor);
+  EXPECT_EQ(data.model.opacity_logits[1], model.opacity_logits[1]);
+  // Rendered the same: alpha within 3e-9 of 1 and 0, and below 1/255.
+  EXPECT_EQ(float(OpacityLogitToAlpha(data.model.opacity_logits[0])), 1.f);
+  EXPECT_LT(OpacityLogitToAlpha(data.model.opacity_logits[3]), 3e-9);
+  EXPECT_EQ(warnings.str(),
+            "warning: " + path +
+                ": 4 infinite opacity logits or log-scales read as what "
+                "viewers render (logit +-20 = alpha 0 or 1, log-scale -20 = "
+                "flat)\n");
+  // Written back and read again: finite, unchanged, no warning.
+  const std::string again = TempPath("inf_opacity_again.ply");
+  WritePly(again, data.model, data.layout);
+  std::ostringstream quiet;
+  options.warnings = &quiet;
+  EXPECT_EQ(ReadPly(again, options).model.opacity_logits,
+            data.model.opacity_logits);
+  EXPECT_EQ(quiet.str(), "");
+
+  model.opacity_logits[5] = std::numeric_limits<float>::quiet_NaN();
+  ExpectRefused(WriteCase("nan_opacity.ply", InriaBytes(model)),
+                "1 NaN/Inf values (first: vertex 5, property opacity)");
+  model.opacity_logits[5] = 0;
+  model.log_scales[2] = kInf;
+  ExpectRefused(WriteCase("inf_scale.ply", InriaBytes(model)),
+                "1 NaN/Inf values (first: vertex 0, property scale_2)");
 }
 
 TEST(PlyIoErrors, WriterRefusesMismatchedLayoutWithoutTouchingOutput) {

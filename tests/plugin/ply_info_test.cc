@@ -164,11 +164,70 @@ TEST(PlyInfoCli, BadFileFailsWithOneLineNamingTheFile) {
   AtomicWriteFile(path, std::string("solid cube\nfacet normal 0 0 1\n"));
   const RunResult run = RunWatergs("ply_info --input_path " + path);
   EXPECT_NE(run.exit_code, 0);
-  EXPECT_EQ(run.output, "error: " + path +
-                            ": not a PLY file (does not start with 'ply')\n");
+  EXPECT_EQ(run.output,
+            "error: " + path +
+                ": a text file, not a 3DGS model (PLY, compressed PLY, .spz "
+                "or .splat)\n");
   const RunResult missing = RunWatergs("ply_info");
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.output.find("input_path"), std::string::npos);
+}
+
+// ply_info and attack read every format by content (here a .spz and a
+// .splat named .ply and .bin); attack runs a codec and writes the format
+// its output's extension names.
+TEST(PlyInfoCli, ReadsEveryFormatAndAttackWritesByExtension) {
+  GaussianModel model;
+  model.sh_degree = 1;
+  model.Resize(40);
+  for (size_t i = 0; i < model.size(); ++i) {
+    model.means[3 * i] = 0.1f * float(i);
+    model.quats[4 * i] = 1.f;
+    model.log_scales[3 * i + 2] = -3.f;
+    model.opacity_logits[i] = 1.f;
+  }
+  const std::string ply = TempPath("codec_in.ply");
+  WritePly(ply, model);
+  const std::string spz = TempPath("codec_out.spz");
+  const RunResult attack = RunWatergs("attack --input_path " + ply +
+                                      " --attack spz:2 --output_path " + spz);
+  ASSERT_EQ(attack.exit_code, 0) << attack.output;
+  EXPECT_NE(attack.output.find("spz:2: 40 Gaussians"), std::string::npos)
+      << attack.output;
+  // A .spz under a PLY's name is still read as SPZ.
+  const std::string disguised = TempPath("disguised_spz.ply");
+  std::filesystem::copy_file(spz, disguised,
+                             std::filesystem::copy_options::overwrite_existing);
+  const RunResult info = RunWatergs("ply_info --input_path " + disguised);
+  ASSERT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("Format:          SPZ version 3"),
+            std::string::npos)
+      << info.output;
+  EXPECT_NE(info.output.find("Gaussians:       40\n"), std::string::npos);
+  EXPECT_NE(info.output.find("SH degree:       1"), std::string::npos);
+  // From the .spz to a .splat (named .bin: read back by content) and to a
+  // PLY in Inria's layout.
+  const std::string splat = TempPath("codec_out.splat");
+  ASSERT_EQ(RunWatergs("attack --input_path " + disguised +
+                       " --attack identity --output_path " + splat)
+                .exit_code,
+            0);
+  const std::string bin = TempPath("codec_out.bin");
+  std::filesystem::copy_file(splat, bin,
+                             std::filesystem::copy_options::overwrite_existing);
+  const RunResult splat_info = RunWatergs("ply_info --input_path " + bin);
+  EXPECT_NE(splat_info.output.find("Format:          antimatter15 .splat"),
+            std::string::npos)
+      << splat_info.output;
+  EXPECT_NE(splat_info.output.find("SH degree:       0"), std::string::npos);
+  const std::string back = TempPath("codec_back.ply");
+  ASSERT_EQ(RunWatergs("attack --input_path " + bin +
+                       " --attack compressed_ply --output_path " + back)
+                .exit_code,
+            0);
+  const PlyData read = ReadPly(back);
+  EXPECT_EQ(read.model.size(), 40u);
+  EXPECT_EQ(read.layout.properties.size(), InriaPlyLayout(0).properties.size());
 }
 
 }  // namespace
