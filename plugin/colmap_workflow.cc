@@ -206,7 +206,7 @@ ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
   plan.single_camera = single_camera;
   const int64_t pairs = int64_t(num_photos) * (num_photos - 1) / 2;
   plan.matcher = options.matcher != "auto" ? options.matcher
-                 : num_photos <= 150       ? "exhaustive"
+                 : num_photos <= 41        ? "exhaustive"
                                            : "sequential";
   const int64_t sequential_pairs =
       int64_t(num_photos) * std::min(10, num_photos - 1);
@@ -217,8 +217,9 @@ ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
       " pairs" +
       (options.matcher != "auto" ? " (--matcher)"
        : plan.matcher == "exhaustive"
-           ? " (every pair up to 150 photos)"
-           : " (over 150 photos: each with its 10 neighbours in name "
+           ? " (every pair while that is at most twice the pairs of sequential "
+             "matching: up to 41 photos)"
+           : " (over 41 photos: each with its 10 neighbours in name "
              "order; take photos in walking order)"));
   plan.max_features = options.max_features > 0 ? options.max_features
                       : gpu_sift               ? 8192

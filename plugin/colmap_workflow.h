@@ -45,7 +45,8 @@ struct ReconstructOptions {
 std::vector<std::string> ListPhotos(const std::string& image_path);
 
 // Settings for `num_photos` photos on `num_threads` threads: matcher
-// exhaustive up to 150 photos (11,175 pairs), sequential (overlap 10) beyond;
+// exhaustive up to 41 photos (820 pairs, twice what sequential matching with
+// overlap 10 would match), sequential beyond;
 // 2,048 features an image on the CPU (8,192 with GPU SIFT); options given
 // override the choice.
 ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,

@@ -28,7 +28,7 @@ int RunReconstruct(int argc, char** argv) {
              "SIFT features an image (0: 2,048 on the CPU, 8,192 with GPU "
              "SIFT)");
   parser.Add("matcher", &o.matcher,
-             "auto (exhaustive up to 150 photos, else sequential), "
+             "auto (exhaustive up to 41 photos, else sequential), "
              "exhaustive or sequential");
   parser.Add("num_threads", &o.num_threads, "Threads (0 = all cores)");
   parser.Add("min_registered", &o.min_registered_fraction,
