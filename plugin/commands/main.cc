@@ -1,4 +1,5 @@
 // Entry point: `watergs <command> [options]`, dispatching to the registry.
+#include <algorithm>
 #include <cstring>
 #include <exception>
 #include <iostream>
@@ -14,10 +15,14 @@ void PrintCommands() {
                "Usage: watergs <command> [options]   (`watergs help <command>` "
                "or `watergs <command> -h` for a command's options; "
                "`watergs --version`)\n\nCommands:\n";
+  // The summaries in one column, two spaces after the longest name.
+  size_t width = 0;
   for (const auto& [name, command] : watergs::CommandRegistry()) {
-    std::cout << "  " << name;
-    for (size_t i = name.size(); i < 16; ++i) std::cout << ' ';
-    std::cout << command.summary << "\n";
+    width = std::max(width, name.size() + 2);
+  }
+  for (const auto& [name, command] : watergs::CommandRegistry()) {
+    std::cout << "  " << name << std::string(width - name.size(), ' ')
+              << command.summary << "\n";
   }
 }
 
