@@ -14,7 +14,7 @@ fail() { echo "pipeline_test: FAIL: $*" >&2; exit 1; }
 printf 'pipeline test key\n' > "$out/owner.key"
 run=(--image_path "$photos" --decoder "$decoder" --message text:PIPE-1 --key "file:$out/owner.key"
   --output_path "$out/result" --downscale 4 --iterations 1500
-  --train_args "--densify_until_iter 750")
+)
 "$bin" pipeline "${run[@]}" > "$out/run1.log" 2>&1 || fail "pipeline: $(tail -5 "$out/run1.log")"
 for f in workspace/sparse/0/images.bin train/point_cloud.ply watermarked.ply report.html; do
   [ -f "$out/result/$f" ] || fail "no $f"
