@@ -134,14 +134,14 @@ OwnershipReport CollectOwnershipReport(
   // Suspect copies after the raw model's row.
   for (size_t k = 0; k < suspects.size(); ++k) {
     r.files.push_back(DescribeFile("suspect copy", request.suspect_paths[k]));
-    const double psnr =
-        options.ground_truth
-            ? MeanPsnrVsTruth(rasterizer, suspects[k], cameras, views,
-                              eval_views, options.background)
-            : NAN;
+    PsnrVsTruth psnr(views, eval_views);
+    ExtractionResult found = ExtractWatermark(
+        rasterizer, suspects[k], cameras, evaluation.view_names, decoder,
+        &message, options.background, options.thresholds, {},
+        options.ground_truth ? psnr.Observer() : DecodedViewObserver{});
     evaluation.robustness.push_back({"file", request.suspect_paths[k], "file",
-                                     suspects[k].size(), extract(suspects[k]),
-                                     psnr});
+                                     suspects[k].size(), std::move(found),
+                                     psnr.Mean()});
   }
 
   // Views shown in full, spread evenly; their metrics are the evaluation's.

@@ -86,30 +86,30 @@ std::vector<ImageAttackSpec> DefaultImageAttacks() {
   return ParseImageAttackList(kDefaultImageAttacks);
 }
 
-double MeanPsnrVsTruth(Rasterizer& rasterizer, const GaussianModel& model,
-                       const std::vector<RenderCamera>& cameras,
-                       const TrainingViews& views,
-                       const std::vector<size_t>& view_ids,
-                       const std::array<float, 3>& background,
-                       const RenderAttack& attack) {
-  if (cameras.empty() || cameras.size() != view_ids.size()) {
-    Fail("eval: PSNR of " + std::to_string(cameras.size()) + " cameras for " +
-         std::to_string(view_ids.size()) + " views");
-  }
-  double sum = 0;
-  for (size_t k = 0; k < cameras.size(); ++k) {
-    ImageRGB image = RenderClamped(rasterizer, model, cameras[k], background);
-    if (attack) image = attack(image);
-    const std::shared_ptr<const ImageRGB> truth = views.Image(view_ids[k]);
-    if (image.width != truth->width || image.height != truth->height) {
-      // An attack that resizes or crops the render: the truth under the same
-      // geometry (JPEG keeps the size, so its artefacts always count).
-      sum += Psnr(image, attack(*truth));
-      continue;
+PsnrVsTruth::PsnrVsTruth(const TrainingViews& views,
+                         const std::vector<size_t>& view_ids,
+                         RenderAttack attack)
+    : views_(views), view_ids_(view_ids), attack_(std::move(attack)) {}
+
+DecodedViewObserver PsnrVsTruth::Observer() {
+  return [this](size_t k, const ImageRGB& decoded) {
+    if (k >= view_ids_.size()) {
+      Fail("eval: PSNR of camera " + std::to_string(k) + " for " +
+           std::to_string(view_ids_.size()) + " views");
     }
-    sum += Psnr(image, *truth);
-  }
-  return sum / double(cameras.size());
+    const std::shared_ptr<const ImageRGB> truth = views_.Image(view_ids_[k]);
+    const bool same_size =
+        decoded.width == truth->width && decoded.height == truth->height;
+    // An attack that resizes or crops the render: the truth under the same
+    // geometry (JPEG keeps the size, so its artefacts always count).
+    sum_ += same_size || !attack_ ? Psnr(decoded, *truth)
+                                  : Psnr(decoded, attack_(*truth));
+    ++seen_;
+  };
+}
+
+double PsnrVsTruth::Mean() const {
+  return seen_ == view_ids_.size() && seen_ > 0 ? sum_ / double(seen_) : NAN;
 }
 
 EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
@@ -183,33 +183,34 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
   }
 
   int64_t done = int64_t(n);
+  // Decodes a row; its PSNR against the ground truth comes from the same
+  // renders (NaN without ground truth).
+  struct Row {
+    ExtractionResult extraction;
+    double psnr;
+  };
   const auto extract = [&](const GaussianModel& model,
                            const std::vector<RenderCamera>& render_cameras,
                            const RenderAttack& attack) {
-    return ExtractWatermark(rasterizer, model, render_cameras,
-                            report.view_names, decoder, &message,
-                            options.background, options.thresholds, attack);
-  };
-  // What each row decoded, compared with the ground truth (NaN without).
-  const auto psnr = [&](const GaussianModel& model,
-                        const std::vector<RenderCamera>& render_cameras,
-                        const RenderAttack& attack) {
-    return options.ground_truth
-               ? MeanPsnrVsTruth(rasterizer, model, render_cameras, views,
-                                 eval_views, options.background, attack)
-               : NAN;
+    PsnrVsTruth psnr(views, eval_views, attack);
+    Row row{ExtractWatermark(
+                rasterizer, model, render_cameras, report.view_names, decoder,
+                &message, options.background, options.thresholds, attack,
+                options.ground_truth ? psnr.Observer() : DecodedViewObserver{}),
+            NAN};
+    row.psnr = psnr.Mean();
+    return row;
   };
   const auto add_row = [&](std::string model, std::string attack,
-                           std::string kind, size_t gaussians,
-                           ExtractionResult result, double row_psnr) {
+                           std::string kind, size_t gaussians, Row row) {
     done += int64_t(n);
     char status[96];
     std::snprintf(status, sizeof(status), "%s BER %.1f%%", attack.c_str(),
-                  100 * result.ber);
+                  100 * row.extraction.ber);
     step(done, status);
     report.robustness.push_back({std::move(model), std::move(attack),
-                                 std::move(kind), gaussians, std::move(result),
-                                 row_psnr});
+                                 std::move(kind), gaussians,
+                                 std::move(row.extraction), row.psnr});
   };
   for (size_t a = 0; a < options.model_attacks.size(); ++a) {
     const ModelAttackSpec& spec = options.model_attacks[a];
@@ -222,18 +223,16 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
       for (RenderCamera& c : moved) c = TransformCamera(c, spec.similarity);
     }
     add_row("watermarked", ToString(spec), "3d", attacked.size(),
-            extract(attacked, moved, {}), psnr(attacked, moved, {}));
+            extract(attacked, moved, {}));
   }
   for (const ImageAttackSpec& spec : options.image_attacks) {
     const RenderAttack attack = [spec](const ImageRGB& image) {
       return AttackAsDecoded(spec, image);
     };
     add_row("watermarked", ToString(spec), "2d", watermarked.size(),
-            extract(watermarked, cameras, attack),
-            psnr(watermarked, cameras, attack));
+            extract(watermarked, cameras, attack));
   }
-  add_row("raw", "identity", "3d", raw.size(), extract(raw, cameras, {}),
-          psnr(raw, cameras, {}));
+  add_row("raw", "identity", "3d", raw.size(), extract(raw, cameras, {}));
   if (options.show_progress) progress.Finish();
   report.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - begin)

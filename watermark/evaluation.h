@@ -124,15 +124,25 @@ ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
                        const RenderCamera& camera,
                        const std::array<float, 3>& background);
 
-// Mean PSNR (dB) of `model`'s clamped renders from `cameras` (after
-// `attack`, when set) against views.Image(view_ids[k]), k over the cameras;
-// an attack that changes the size is compared with the truth under it.
-double MeanPsnrVsTruth(Rasterizer& rasterizer, const GaussianModel& model,
-                       const std::vector<RenderCamera>& cameras,
-                       const TrainingViews& views,
-                       const std::vector<size_t>& view_ids,
-                       const std::array<float, 3>& background,
-                       const RenderAttack& attack = {});
+// Mean PSNR (dB) against the ground truth of the images a row decoded: fed
+// by ExtractWatermark's observer, so the renders are not made twice. Image k
+// is compared with views.Image(view_ids[k]); one whose size the attack
+// changed is compared with the truth under the same attack.
+class PsnrVsTruth {
+ public:
+  PsnrVsTruth(const TrainingViews& views, const std::vector<size_t>& view_ids,
+              RenderAttack attack = {});
+  DecodedViewObserver Observer();
+  // NaN until every view has been seen once.
+  double Mean() const;
+
+ private:
+  const TrainingViews& views_;
+  const std::vector<size_t>& view_ids_;
+  RenderAttack attack_;
+  double sum_ = 0;
+  size_t seen_ = 0;
+};
 
 // Evaluates on `eval_views` (indices into `views`). The raw and watermarked
 // models are rendered from the same cameras; a similarity attack moves the

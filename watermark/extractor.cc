@@ -42,7 +42,8 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
                                   BitDecoder& decoder, const Bits* expected,
                                   const std::array<float, 3>& background,
                                   const VerificationThresholds& thresholds,
-                                  const RenderAttack& attack) {
+                                  const RenderAttack& attack,
+                                  const DecodedViewObserver& observe) {
   const int num_bits = decoder.NumBits();
   if (cameras.empty()) Fail("extract: no views to render");
   if (expected && static_cast<int>(expected->size()) != num_bits) {
@@ -57,6 +58,7 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
     rasterizer.Forward(model, cameras[k], options, &image, nullptr);
     for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
     if (attack) image = attack(image);
+    if (observe) observe(k, image);
     ViewDecode view;
     view.name = k < names.size() ? names[k] : "free_" + std::to_string(k);
     view.logits = decoder.Logits(image);

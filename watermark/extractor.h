@@ -67,9 +67,15 @@ std::vector<RenderCamera> SampleFreeViewpoints(const TrainingViews& views,
 // An attack on each render before it is decoded (JPEG, resize, ...).
 using RenderAttack = std::function<ImageRGB(const ImageRGB&)>;
 
+// Sees each camera's index and the image the decoder read (after the attack),
+// so that callers measure those images without rendering them again.
+using DecodedViewObserver =
+    std::function<void(size_t camera, const ImageRGB& decoded)>;
+
 // Renders `model` from each camera (whole frames, clamped to [0, 1]), decodes
 // and aggregates; `expected` (may be null) must have the decoder's length.
-// `attack`, when set, transforms each clamped render before decoding.
+// `attack`, when set, transforms each clamped render before decoding;
+// `observe`, when set, sees each decoded image.
 ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
                                   const GaussianModel& model,
                                   const std::vector<RenderCamera>& cameras,
@@ -77,7 +83,8 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
                                   BitDecoder& decoder, const Bits* expected,
                                   const std::array<float, 3>& background,
                                   const VerificationThresholds& thresholds,
-                                  const RenderAttack& attack = {});
+                                  const RenderAttack& attack = {},
+                                  const DecodedViewObserver& observe = {});
 
 // The result as JSON text (recovered hex/bits, BER, spread, p-value, verdict,
 // per-view BER).

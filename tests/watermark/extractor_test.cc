@@ -103,6 +103,43 @@ TEST(Extractor, AggregatesLogitsAndReportsSpreadAndPValue) {
   EXPECT_EQ(j["recovered_bits"], BitsToString(r.recovered));
 }
 
+// The observer sees, once a camera and in order, exactly the image that was
+// decoded: the clamped render after the attack (eval's PSNR column reads
+// these instead of rendering each view again).
+TEST(Extractor, ObserverSeesEachDecodedImageAfterTheAttack) {
+  ExtractScene s;
+  Decoder decoder(&s.net);
+  auto rasterizer = MakeCpuRasterizer();
+  const RenderAttack darken = [](const ImageRGB& image) {
+    ImageRGB out = image;
+    for (float& v : out.data) v *= 0.5f;
+    return out;
+  };
+  std::vector<size_t> order;
+  std::vector<ImageRGB> seen;
+  const ExtractionResult r =
+      ExtractWatermark(*rasterizer, s.model, s.cameras, s.names, decoder,
+                       nullptr, {0, 0, 0}, VerificationThresholds{}, darken,
+                       [&](size_t camera, const ImageRGB& decoded) {
+                         order.push_back(camera);
+                         seen.push_back(decoded);
+                       });
+  ASSERT_EQ(seen.size(), s.cameras.size());
+  for (size_t v = 0; v < s.cameras.size(); ++v) {
+    EXPECT_EQ(order[v], v);
+    ImageRGB image;
+    rasterizer->Forward(s.model, s.cameras[v], RenderOptions{}, &image,
+                        nullptr);
+    for (float& x : image.data) x = std::clamp(x, 0.f, 1.f);
+    const ImageRGB expected = darken(image);
+    ASSERT_EQ(seen[v].data.size(), expected.data.size());
+    for (size_t i = 0; i < expected.data.size(); ++i) {
+      ASSERT_FLOAT_EQ(seen[v].data[i], expected.data[i]) << v << " " << i;
+    }
+    EXPECT_EQ(decoder.Logits(seen[v]), r.views[v].logits) << v;
+  }
+}
+
 // An unmarked model tested against many claimed messages: the verdict is
 // never "present" (its false-positive rate is 1e-6 per claim).
 TEST(Extractor, RawModelDoesNotClaimTheWatermark) {
