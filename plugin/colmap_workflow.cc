@@ -2,11 +2,13 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <regex>
 
@@ -164,12 +166,13 @@ std::vector<Stage> ColmapStages(const ColmapPlan& plan,
                       "", std::regex(R"(Matching image \[(\d+)/(\d+)\])"),
                       one_of, n});
   } else {
-    // Blocks of images: [row/rows, column/columns].
+    // Blocks of images: [row/rows, column/columns]; blocks of 10 photos (COLMAP
+    // defaults to 50) so that the demo's 48 show progress with an ETA.
     stages.push_back(
         {"matching",
          colmap + " exhaustive_matcher --database_path " + db +
              " --SiftMatching.use_gpu " + g + " --SiftMatching.num_threads " +
-             t,
+             t + " --ExhaustiveMatching.block_size 10",
          "", std::regex(R"(Matching block \[(\d+)/(\d+), (\d+)/(\d+)\])"),
          [](const std::smatch& m) {
            const int64_t cols = ToInt(m[4]);
@@ -205,9 +208,9 @@ ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
   plan.use_gpu = gpu_sift;
   plan.single_camera = single_camera;
   const int64_t pairs = int64_t(num_photos) * (num_photos - 1) / 2;
-  plan.matcher = options.matcher != "auto" ? options.matcher
-                 : num_photos <= 41        ? "exhaustive"
-                                           : "sequential";
+  plan.matcher = options.matcher != "auto"            ? options.matcher
+                 : num_photos <= kMaxExhaustivePhotos ? "exhaustive"
+                                                      : "sequential";
   const int64_t sequential_pairs =
       int64_t(num_photos) * std::min(10, num_photos - 1);
   plan.reasons.push_back(
@@ -217,10 +220,12 @@ ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
       " pairs" +
       (options.matcher != "auto" ? " (--matcher)"
        : plan.matcher == "exhaustive"
-           ? " (every pair while that is at most twice the pairs of sequential "
-             "matching: up to 41 photos)"
-           : " (over 41 photos: each with its 10 neighbours in name "
-             "order; take photos in walking order)"));
+           ? " (every pair up to " + std::to_string(kMaxExhaustivePhotos) +
+                 " photos: sequential matching placed part of the demo's "
+                 "photos wrongly, on repetitive texture)"
+           : " (over " + std::to_string(kMaxExhaustivePhotos) +
+                 " photos: each with its 10 neighbours in name order; take "
+                 "photos in walking order)"));
   plan.max_features = options.max_features > 0 ? options.max_features
                       : gpu_sift               ? 8192
                                                : 2048;
@@ -323,6 +328,35 @@ void RunReconstruction(const ReconstructOptions& o) {
          " photos registered: take photos with more overlap, or try "
          "--matcher exhaustive / more --max_features");
   }
+}
+
+std::string OutlierViewWarning(const std::string& train_report_json) {
+  const nlohmann::json j =
+      nlohmann::json::parse(train_report_json, nullptr, false);
+  if (j.is_discarded() || !j.contains("views") || !j["views"].is_array()) {
+    return "";
+  }
+  double best = -1e300;
+  for (const auto& v : j["views"]) best = std::max(best, v.value("psnr", 0.0));
+  std::string low;
+  for (const auto& v : j["views"]) {
+    const double psnr = v.value("psnr", 0.0);
+    if (psnr > best - kOutlierViewDb) continue;
+    char item[160];
+    std::snprintf(item, sizeof(item), "%s%s %.1f dB", low.empty() ? "" : ", ",
+                  v.value("name", std::string("?")).c_str(), psnr);
+    low += item;
+  }
+  if (low.empty()) return "";
+  char head[160];
+  std::snprintf(head, sizeof(head),
+                "pipeline: warning: held-out views %.0f dB or more below the "
+                "best (%.1f dB): ",
+                kOutlierViewDb, best);
+  return head + low +
+         ". Photos joined in a wrong pose read like this: if reconstruct "
+         "matched sequentially, try --matcher exhaustive or more "
+         "--max_features\n";
 }
 
 }  // namespace watergs

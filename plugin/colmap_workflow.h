@@ -44,14 +44,29 @@ struct ReconstructOptions {
 // The photo files of `image_path` (.jpg/.jpeg/.png, any case, sorted).
 std::vector<std::string> ListPhotos(const std::string& image_path);
 
+// Most photos matched exhaustively (4,950 pairs, ~14 min at 2,048 features on
+// 2 cores). Every pair is what places photos right on repetitive texture:
+// sequential matching (with COLMAP's quadratic overlap) joined two groups of
+// the demo's 48 photos in a wrong relative pose at 0.29 px reprojection error.
+inline constexpr int kMaxExhaustivePhotos = 100;
+
 // Settings for `num_photos` photos on `num_threads` threads: matcher
-// exhaustive up to 41 photos (820 pairs, twice what sequential matching with
-// overlap 10 would match), sequential beyond;
+// exhaustive up to kMaxExhaustivePhotos, sequential beyond;
 // 2,048 features an image on the CPU (8,192 with GPU SIFT); options given
 // override the choice.
 ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
                               bool single_camera,
                               const ReconstructOptions& options);
+
+// Held-out views this far below the best one suggest misplaced photos.
+inline constexpr double kOutlierViewDb = 6;
+
+// A warning line (empty when none) naming the held-out views of train's
+// report.json text that read kOutlierViewDb or more below the best: what
+// photos joined in a wrong pose look like (the demo's sequentially matched
+// model read 14-16 dB on them, 23-24 dB on the rest), though a scene can vary
+// that much too.
+std::string OutlierViewWarning(const std::string& train_report_json);
 
 // Runs the stages not yet done (markers in <workspace>/.reconstruct/), then
 // keeps the largest model as sparse/0. Error (one line) for a missing colmap

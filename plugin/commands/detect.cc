@@ -21,6 +21,7 @@
 
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
+#include "gaussian/text_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "watermark/bit_decoder.h"
@@ -45,12 +46,7 @@ constexpr int kMaxSideAsIs = 8192;
 // is) or a folder (its .png/.jpg/.jpeg files, sorted by name).
 std::vector<std::string> ImageFiles(const std::string& list) {
   std::vector<std::string> files;
-  size_t start = 0;
-  while (start <= list.size()) {
-    const size_t end = std::min(list.find(',', start), list.size());
-    const std::string entry = list.substr(start, end - start);
-    start = end + 1;
-    if (entry.empty()) continue;
+  for (const std::string& entry : SplitList(list)) {
     if (fs::is_directory(entry)) {
       const std::vector<std::string> found = ListImageFiles(entry, false);
       if (found.empty()) FailAt(entry, "no .png or .jpg images in the folder");

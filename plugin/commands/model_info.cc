@@ -1,22 +1,27 @@
 // `watergs model_info`: the figures `colmap model_analyzer` prints, for a
-// sparse model folder or a workspace (.bin or .txt).
+// sparse model folder or a workspace (.bin or .txt); with a reference model
+// of the same photos, how far its camera poses are from the reference's.
 #include <iostream>
 
 #include "plugin/command.h"
 #include "plugin/model_analyzer.h"
 #include "plugin/option_parser.h"
+#include "plugin/pose_comparison.h"
 #include "plugin/reconstruction_io.h"
 
 namespace {
 
 int RunModelInfo(int argc, char** argv) {
-  std::string input_path;
+  std::string input_path, reference_path;
   watergs::OptionParser parser(
       "model_info",
       "Prints the summary of a COLMAP sparse model, as "
       "`colmap model_analyzer` does.");
   parser.AddRequired("input_path", &input_path,
                      "Sparse model folder, or a workspace holding sparse/0");
+  parser.Add("reference_path", &reference_path,
+             "A model of the same photos (e.g. from known poses): print how "
+             "far the camera poses are from it, up to a similarity");
   if (!parser.Parse(argc, argv)) return 0;
   const std::string model_path = watergs::FindModelPath(input_path);
   const watergs::Reconstruction reconstruction =
@@ -29,6 +34,11 @@ int RunModelInfo(int argc, char** argv) {
             << ")\n"
             << watergs::FormatModelSummary(
                    watergs::AnalyzeModel(reconstruction));
+  if (!reference_path.empty()) {
+    std::cout << watergs::FormatPoseComparison(watergs::ComparePoses(
+        reconstruction,
+        watergs::ReadReconstruction(watergs::FindModelPath(reference_path))));
+  }
   return 0;
 }
 

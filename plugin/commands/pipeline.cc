@@ -13,6 +13,7 @@
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/text_util.h"
+#include "plugin/colmap_workflow.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/report_evidence.h"
@@ -156,6 +157,13 @@ int RunPipeline(int argc, char** argv) {
         "pipeline: %s done in %.0f s\n", name.c_str(),
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
             .count());
+    const fs::path train_report = out / "train" / "report.json";
+    if (name == "train" && fs::exists(train_report)) {
+      const std::vector<uint8_t> bytes = ReadFileBytes(train_report.string());
+      std::fputs(
+          OutlierViewWarning(std::string(bytes.begin(), bytes.end())).c_str(),
+          stdout);
+    }
   }
   std::printf(
       "pipeline: %s and %s written (%.0f s this run)\n",

@@ -16,6 +16,7 @@
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/model_io.h"
+#include "gaussian/text_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/ownership_report.h"
@@ -28,16 +29,6 @@
 
 namespace watergs {
 namespace {
-
-std::vector<std::string> SplitCommas(const std::string& text) {
-  std::vector<std::string> parts;
-  std::stringstream in(text);
-  std::string part;
-  while (std::getline(in, part, ',')) {
-    if (!part.empty()) parts.push_back(part);
-  }
-  return parts;
-}
 
 int RunReport(int argc, char** argv) {
   const auto begin = std::chrono::steady_clock::now();
@@ -102,7 +93,7 @@ int RunReport(int argc, char** argv) {
   if (!(present_p > 0 && present_p < 0.01)) {
     Fail("report: --false_positive_rate must be in (0, 0.01)");
   }
-  request.suspect_paths = SplitCommas(copies);
+  request.suspect_paths = SplitList(copies);
   std::vector<std::string> inputs = {request.raw_path, request.watermarked_path,
                                      request.decoder_path};
   inputs.insert(inputs.end(), request.suspect_paths.begin(),

@@ -17,6 +17,7 @@
 #include "gaussian/ply_io.h"
 #include "gaussian/point_init.h"
 #include "gaussian/progress.h"
+#include "gaussian/text_util.h"
 #include "gaussian/trainer.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
@@ -33,10 +34,7 @@ std::vector<int64_t> ParseIterationList(const std::string& text) {
   std::string token;
   std::istringstream in(text);
   while (in >> token) {
-    std::istringstream parts(token);
-    std::string part;
-    while (std::getline(parts, part, ',')) {
-      if (part.empty()) continue;
+    for (const std::string& part : SplitList(token)) {
       try {
         size_t used = 0;
         out.push_back(std::stoll(part, &used));
