@@ -25,7 +25,7 @@ if [ ! -x "$node" ] || [ ! -f "$cli" ]; then
   command -v npm > /dev/null || fail "no npm client (bash scripts/install_deps.sh --tests installs it)"
   if ! WATERGS_NPM_PREFIX="$prefix" bash "$root/scripts/install_deps.sh" --npm_only > "$out/npm.log" 2>&1; then
     if ! timeout 60 npm ping > "$out/ping.log" 2>&1; then
-      echo "splat_transform_test: SKIP: the npm registry is unreachable ($(tail -n 1 "$out/ping.log")), so splat-transform cannot be installed"
+      echo "splat_transform_test: SKIP: the npm registry is unreachable ($(grep -m 1 'npm error' "$out/ping.log" || tail -n 1 "$out/ping.log")), so splat-transform cannot be installed"
       exit 77
     fi
     cat "$out/npm.log"; fail "installing splat-transform failed with the registry reachable"
