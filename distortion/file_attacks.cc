@@ -10,8 +10,12 @@
 #include <numeric>
 #include <sstream>
 
+#include "distortion/chunk_quantize.h"
+#include "distortion/decimate.h"
+#include "distortion/significance_prune.h"
 #include "gaussian/compressed_ply_io.h"
 #include "gaussian/error.h"
+#include "gaussian/rasterizer.h"
 #include "gaussian/sh.h"
 #include "gaussian/splat_io.h"
 #include "gaussian/spz_io.h"
@@ -342,6 +346,34 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
       Fail("--attack: '" + Printable(text) +
            "': the opacity threshold must be in [0, 1]");
     }
+  } else if (name == "prune_significance" || name == "decimate") {
+    spec.kind = name == "decimate" ? ModelAttackKind::kDecimate
+                                   : ModelAttackKind::kPruneSignificance;
+    spec.fraction = ParseNumber(args, name);
+    if (!(spec.fraction >= 0 && spec.fraction < 1)) {
+      Fail("--attack: '" + Printable(text) +
+           "': the fraction removed must be in [0, 1)");
+    }
+  } else if (name == "quant_chunk") {
+    spec.kind = ModelAttackKind::kQuantizeChunked;
+    const size_t colon = args.find(':');
+    const std::string bits_text = args.substr(0, colon);
+    const double bits = ParseNumber(bits_text, "quant_chunk");
+    if (bits != std::round(bits) || bits < 1 || bits > 16) {
+      Fail("--attack: '" + Printable(text) +
+           "': bits must be an integer in [1, 16]");
+    }
+    spec.bits = int(bits);
+    if (colon != std::string::npos) {
+      const double position_bits =
+          ParseNumber(args.substr(colon + 1), "quant_chunk position bits");
+      if (position_bits != std::round(position_bits) || position_bits < 1 ||
+          position_bits > 24) {
+        Fail("--attack: '" + Printable(text) +
+             "': position bits must be an integer in [1, 24]");
+      }
+      spec.position_bits = int(position_bits);
+    }
   } else if (name == "spz") {
     spec.kind = ModelAttackKind::kCodec;
     spec.codec = GaussianFormat::kSpz;
@@ -360,7 +392,8 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
     Fail("--attack: unknown attack '" + Printable(text) +
          "' (identity, gn:SIGMA, dropout:P, crop:P, sh0, fp16, quant:BITS, "
          "shuffle, similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ], prune:T, "
-         "spz[:VERSION], compressed_ply, splat)");
+         "spz[:VERSION], compressed_ply, splat, prune_significance:F, "
+         "decimate:F, quant_chunk:BITS[:POSBITS])");
   }
   return spec;
 }
@@ -409,14 +442,44 @@ std::string ToString(const ModelAttackSpec& spec) {
         return "spz:" + std::to_string(spec.spz_version);
       }
       return GaussianFormatName(spec.codec);
+    case ModelAttackKind::kPruneSignificance:
+    case ModelAttackKind::kDecimate: {
+      std::ostringstream out;
+      out << (spec.kind == ModelAttackKind::kDecimate ? "decimate:"
+                                                      : "prune_significance:")
+          << spec.fraction;
+      return out.str();
+    }
+    case ModelAttackKind::kQuantizeChunked:
+      return "quant_chunk:" + std::to_string(spec.bits) + ":" +
+             std::to_string(spec.position_bits);
   }
   return "?";
 }
 
+bool AttackNeedsCameras(const ModelAttackSpec& spec) {
+  return spec.kind == ModelAttackKind::kPruneSignificance;
+}
+
 void ApplyModelAttack(const ModelAttackSpec& spec, const GaussianModel& in,
                       std::mt19937_64& rng, GaussianModel* out,
-                      std::vector<uint32_t>* source) {
+                      std::vector<uint32_t>* source,
+                      const std::vector<RenderCamera>* cameras) {
   switch (spec.kind) {
+    case ModelAttackKind::kPruneSignificance: {
+      if (cameras == nullptr || cameras->empty()) {
+        Fail("--attack: " + ToString(spec) +
+             " needs the training cameras (--workspace_path)");
+      }
+      const auto rasterizer = MakeCpuRasterizer();
+      PruneLowestScores(spec.fraction,
+                        SignificanceScores(in, *cameras, *rasterizer), in, out,
+                        source);
+      return;
+    }
+    case ModelAttackKind::kDecimate:
+      Decimate(spec.fraction, in, out, source);
+      return;
     case ModelAttackKind::kDistortion:
       MakeDistortionLayer(spec.distortion)->Apply(in, rng, out, source);
       return;
@@ -449,6 +512,9 @@ void ApplyModelAttack(const ModelAttackSpec& spec, const GaussianModel& in,
   if (spec.kind == ModelAttackKind::kShTruncation) TruncateShToDegree0(out);
   if (spec.kind == ModelAttackKind::kFloat16) QuantizeFloat16(out);
   if (spec.kind == ModelAttackKind::kQuantize) QuantizeLinear(spec.bits, out);
+  if (spec.kind == ModelAttackKind::kQuantizeChunked) {
+    QuantizeChunked(spec.bits, spec.position_bits, out);
+  }
   if (spec.kind == ModelAttackKind::kSimilarity) {
     ApplySimilarity(spec.similarity, out);
   }

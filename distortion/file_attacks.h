@@ -1,9 +1,11 @@
 // Attacks on 3DGS files that users meet beyond the paper's distortion layers:
 // SH truncation to degree 0 (what .splat viewers keep), float16 and k-bit
-// quantisation of the attributes (compressed-PLY formats), shuffling the
-// Gaussians, a similarity transform of the whole scene, and pruning by
-// opacity. Together with the distortion layers (identity, gn, dropout, crop)
-// they form the "model attacks" of `watergs attack` and `watergs eval`.
+// quantisation of the attributes (global, a stress test; per chunk, as
+// compressed formats do), shuffling the Gaussians, a similarity transform of
+// the whole scene, pruning by opacity, and the compaction pipeline's
+// significance pruning and neighbour-merging decimation. Together with the
+// distortion layers (identity, gn, dropout, crop) they form the "model attacks"
+// of `watergs attack` and `watergs eval`.
 #pragma once
 
 #include <Eigen/Core>
@@ -72,7 +74,10 @@ enum class ModelAttackKind {
   kShuffle,
   kSimilarity,
   kPrune,
-  kCodec
+  kCodec,
+  kPruneSignificance,
+  kDecimate,
+  kQuantizeChunked
 };
 
 // One attack on a model.
@@ -81,8 +86,12 @@ struct ModelAttackSpec {
   ModelAttackKind kind = ModelAttackKind::kDistortion;
   // kDistortion: the distortion layer (identity, gn, dropout, crop).
   DistortionSpec distortion;
-  // kQuantize: bits per value.
+  // kQuantize, kQuantizeChunked: bits per value.
   int bits = 8;
+  // kQuantizeChunked: bits per position coordinate.
+  int position_bits = 16;
+  // kPruneSignificance, kDecimate: fraction of the Gaussians removed.
+  double fraction = 0.0;
   // kPrune: Gaussians with sigmoid(opacity) below this are removed.
   double opacity_threshold = 0.0;
   // kSimilarity: the scene transform.
@@ -102,8 +111,9 @@ void ApplyCodec(GaussianFormat codec, int spz_version, const GaussianModel& in,
 
 // Parses one attack: identity | gn:SIGMA | dropout:P | crop:P | sh0 | fp16 |
 // quant:BITS (quant = quant:8) | shuffle | similarity:DEG,TX,TY,TZ,S[,AX,AY,
-// AZ] | prune:T | spz[:VERSION] (spz = spz:3) | compressed_ply | splat.
-// Throws Error naming the text.
+// AZ] | prune:T | spz[:VERSION] (spz = spz:3) | compressed_ply | splat |
+// prune_significance:F | decimate:F | quant_chunk:BITS[:POSBITS] (POSBITS
+// 16 by default). Throws Error naming the text.
 ModelAttackSpec ParseModelAttack(const std::string& text);
 // Comma-separated attacks; an item starting with a digit, sign or '.'
 // continues the previous one's arguments (so "similarity:30,1,0,0,2,sh0" is
@@ -112,10 +122,17 @@ std::vector<ModelAttackSpec> ParseModelAttackList(const std::string& text);
 // The text ParseModelAttack reads back.
 std::string ToString(const ModelAttackSpec& spec);
 
+// Whether the attack renders the scene (prune_significance: it scores the
+// Gaussians by their blend weight in the training cameras).
+bool AttackNeedsCameras(const ModelAttackSpec& spec);
+
 // out = attack(in); source[i] is the index in `in` of output Gaussian i
-// (for PlyLayout::RemapExtras). `out` must not alias `in`.
+// (for PlyLayout::RemapExtras). `out` must not alias `in`. `cameras`: the
+// training cameras, needed by the attacks AttackNeedsCameras names (Error
+// without them), ignored by the others.
 void ApplyModelAttack(const ModelAttackSpec& spec, const GaussianModel& in,
                       std::mt19937_64& rng, GaussianModel* out,
-                      std::vector<uint32_t>* source);
+                      std::vector<uint32_t>* source,
+                      const std::vector<RenderCamera>* cameras = nullptr);
 
 }  // namespace watergs

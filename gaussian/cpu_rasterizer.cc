@@ -225,6 +225,24 @@ void CpuRasterizer::Forward(const GaussianModel& model,
   if (context != nullptr) *context = std::move(ctx);
 }
 
+void CpuRasterizer::AccumulateBlendWeights(const GaussianModel& model,
+                                           const RenderCamera& camera,
+                                           const RenderOptions& options,
+                                           std::vector<double>* weights) {
+  if (weights->size() != model.size()) {
+    Fail("render: blend weights need one entry per Gaussian");
+  }
+  ImageRGB image;
+  std::unique_ptr<RenderContext> context;
+  Forward(model, camera, options, &image, &context);
+  const auto& ctx = static_cast<const CpuRenderContext&>(*context);
+  std::vector<double> per_splat(ctx.splats.size(), 0.0);
+  AccumulateSplatWeights(ctx.splats, ctx.bins, ctx.blend.rect, &per_splat);
+  for (size_t k = 0; k < per_splat.size(); ++k) {
+    (*weights)[ctx.splat_ids[k]] += per_splat[k];
+  }
+}
+
 namespace {
 
 // Sizes every gradient array for `model` without clearing: the backward

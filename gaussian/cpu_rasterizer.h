@@ -48,6 +48,10 @@ class CpuRasterizer : public Rasterizer {
                std::unique_ptr<RenderContext>* context) override;
   void Backward(const GaussianModel& model, const RenderContext& context,
                 const ImageRGB& grad_image, GaussianGradients* grads) override;
+  void AccumulateBlendWeights(const GaussianModel& model,
+                              const RenderCamera& camera,
+                              const RenderOptions& options,
+                              std::vector<double>* weights) override;
 };
 
 // Checks the options against the camera and model; returns the pixel rect

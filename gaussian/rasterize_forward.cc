@@ -23,10 +23,14 @@ TilePixels PixelsOf(int tx, int ty, const PixelRect& rect) {
 }
 
 // Blends one tile's list into the pixels of the tile that lie in `rect`.
+// on_weight(splat index, row of alpha * T) sees every blending weight: the
+// render passes a no-op (compiled away), the weight pass sums them, so both
+// take the same decisions.
+template <typename OnWeight>
 void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
                uint32_t count, int tx, int ty, const PixelRect& rect,
                const std::array<float, 3>& background, ImageRGB* image,
-               BlendState* state) {
+               BlendState* state, OnWeight&& on_weight) {
   constexpr int kN = kTileSize;
   const TilePixels px = PixelsOf(tx, ty, rect);
   const int base_x = tx * kN, base_y = ty * kN;
@@ -67,6 +71,7 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
       const RowI stop = ok & (test_T < kMinTransmittance);
       const RowI contrib = ok & ~stop;
       const RowF w = contrib ? alpha * T[r] : RowF{};
+      on_weight(list[j], w);
       cr[r] += w * s.color[0];
       cg[r] += w * s.color[1];
       cb[r] += w * s.color[2];
@@ -112,7 +117,41 @@ void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
     const int ty = bins.range.y0 + k / range_w;
     const uint32_t begin = bins.offsets[k], end = bins.offsets[k + 1];
     BlendTile(splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
-              background, image, state);
+              background, image, state, [](uint32_t, const RowF&) {});
+  }
+}
+
+void AccumulateSplatWeights(const std::vector<Splat>& splats,
+                            const TileBins& bins, const PixelRect& rect,
+                            std::vector<double>* splat_weights) {
+  // The blend writes an image and a state too; they are scratch here.
+  ImageRGB image(rect.width, rect.height);
+  BlendState state;
+  state.rect = rect;
+  const size_t pixels = static_cast<size_t>(rect.width) * rect.height;
+  state.final_T.assign(pixels, 1.f);
+  state.n_contrib.assign(pixels, 0);
+  const std::array<float, 3> background = {0.f, 0.f, 0.f};
+  const int range_w = bins.range.x1 - bins.range.x0;
+  const int num_tiles = bins.NumTiles();
+#pragma omp parallel
+  {
+    // Per-thread sums (a splat spans several tiles), added up in order of
+    // thread below; double keeps a million pixels' sum exact to ~1e-10.
+    std::vector<double> local(splats.size(), 0.0);
+#pragma omp for schedule(dynamic, 1)
+    for (int k = 0; k < num_tiles; ++k) {
+      const int tx = bins.range.x0 + k % range_w;
+      const int ty = bins.range.y0 + k / range_w;
+      const uint32_t begin = bins.offsets[k], end = bins.offsets[k + 1];
+      BlendTile(splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
+                background, &image, &state,
+                [&local](uint32_t splat, const RowF& w) {
+                  local[splat] += RowSum(w);
+                });
+    }
+#pragma omp critical
+    for (size_t k = 0; k < local.size(); ++k) (*splat_weights)[k] += local[k];
   }
 }
 

@@ -75,6 +75,13 @@ void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
                       const std::array<float, 3>& background, ImageRGB* image,
                       BlendState* state);
 
+// Adds to (*splat_weights)[k] (one entry per splat, sized by the caller) the
+// sum over `rect`'s pixels of splat k's blending weight alpha * T, with the
+// forward pass's own decisions (1/255 cut-off, 0.99 cap, early stop).
+void AccumulateSplatWeights(const std::vector<Splat>& splats,
+                            const TileBins& bins, const PixelRect& rect,
+                            std::vector<double>* splat_weights);
+
 // One tile row of 16 floats / ints (GCC vector extension: one AVX-512
 // register here, split into narrower registers on other targets). Written
 // explicitly because the compiler will not if-convert the blending loop

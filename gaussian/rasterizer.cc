@@ -1,5 +1,7 @@
 #include "gaussian/rasterizer.h"
 
+#include "gaussian/error.h"
+
 namespace watergs {
 
 void GaussianGradients::Reset(size_t n, int rest_stride) {
@@ -19,6 +21,15 @@ void GaussianGradients::Reset(size_t n, int rest_stride) {
   zero(mean2d_grad_norm, n);
   zero(mean2d_grad_norm_ndc, n);
   visible.assign(n, 0);
+}
+
+void Rasterizer::AccumulateBlendWeights(const GaussianModel&,
+                                        const RenderCamera&,
+                                        const RenderOptions&,
+                                        std::vector<double>*) {
+  Fail(
+      "render: per-Gaussian blend weights are computed by the CPU rasterizer "
+      "only");
 }
 
 }  // namespace watergs

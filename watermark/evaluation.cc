@@ -212,12 +212,25 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
                                  std::move(kind), gaussians,
                                  std::move(row.extraction), row.psnr});
   };
+  // The cameras an attack that renders the scene (prune_significance) sees:
+  // the views not evaluated, the training split when the evaluated ones are
+  // held out; all of them when every view is evaluated.
+  std::vector<RenderCamera> training_cameras;
+  {
+    std::vector<bool> evaluated(views.NumViews(), false);
+    for (size_t view : eval_views) evaluated[view] = true;
+    for (size_t v = 0; v < views.NumViews(); ++v) {
+      if (!evaluated[v]) training_cameras.push_back(views.Camera(v));
+    }
+    if (training_cameras.empty()) training_cameras = cameras;
+  }
   for (size_t a = 0; a < options.model_attacks.size(); ++a) {
     const ModelAttackSpec& spec = options.model_attacks[a];
     std::mt19937_64 rng(options.seed + a);
     GaussianModel attacked;
     std::vector<uint32_t> source;
-    ApplyModelAttack(spec, watermarked, rng, &attacked, &source);
+    ApplyModelAttack(spec, watermarked, rng, &attacked, &source,
+                     &training_cameras);
     std::vector<RenderCamera> moved = cameras;
     if (spec.kind == ModelAttackKind::kSimilarity) {
       for (RenderCamera& c : moved) c = TransformCamera(c, spec.similarity);

@@ -8,6 +8,8 @@
 // for a non-PLY input). A similarity transform moves the scene
 // away from the workspace's cameras: the transform is printed and written to
 // <output_path>.transform.txt for `watergs extract --scene_transform`.
+// prune_significance renders the scene from the workspace's training
+// cameras (--workspace_path), as LightGaussian scores Gaussians.
 #include <iostream>
 #include <random>
 
@@ -17,12 +19,15 @@
 #include "gaussian/model_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
+#include "plugin/workspace.h"
 
 namespace watergs {
 namespace {
 
 int RunAttack(int argc, char** argv) {
   std::string input_path, output_path, attacks;
+  WorkspaceOptions workspace_options;
+  workspace_options.images_optional = true;  // cameras only
   int seed = 0;
   OptionParser parser(
       "attack",
@@ -35,7 +40,12 @@ int RunAttack(int argc, char** argv) {
       "similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ] (whole scene rotated about the "
       "axis, default z, scaled and translated; SH rotated with it), prune:T "
       "(Gaussians with opacity < T removed), spz[:2|3], compressed_ply, "
-      "splat (a round trip through that format's encoder and decoder). The "
+      "splat (a round trip through that format's encoder and decoder), "
+      "prune_significance:F (the fraction F of lowest LightGaussian "
+      "significance removed; needs --workspace_path), decimate:F (nearest "
+      "neighbours merged until F of the Gaussians are gone), "
+      "quant_chunk:BITS[:POSBITS] (per chunk of 256 Morton-ordered "
+      "Gaussians, min/max quantisation; positions POSBITS, default 16). The "
       "input is any model file (PLY, compressed PLY, .spz, .splat); the "
       "output is written in the format its extension names (.spz, .splat, "
       ".compressed.ply), otherwise as a PLY in the input's layout.");
@@ -45,16 +55,38 @@ int RunAttack(int argc, char** argv) {
                      "identity | gn:SIGMA | dropout:P | crop:P | sh0 | fp16 | "
                      "quant:BITS | shuffle | similarity:DEG,TX,TY,TZ,S[,AX,AY,"
                      "AZ] | prune:T | spz[:VERSION] | compressed_ply | splat "
-                     "[,...]");
+                     "| prune_significance:F | decimate:F | "
+                     "quant_chunk:BITS[:POSBITS] [,...]");
   parser.AddRequired("output_path", &output_path,
                      "Attacked model to write (.spz, .splat, .compressed.ply "
                      "or a PLY)");
   parser.Add("seed", &seed, "Random seed");
+  parser.Add("workspace_path", &workspace_options.workspace_path,
+             "COLMAP workspace whose training cameras (all but every 8th "
+             "view) prune_significance renders from");
+  parser.Add("sparse_path", &workspace_options.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
+  parser.Add("downscale", &workspace_options.downscale,
+             "Camera downscale for prune_significance: 1,2,4,8");
   if (!parser.Parse(argc, argv)) return 0;
   if (SamePath(input_path, output_path)) {
     Fail("attack: --output_path must differ from --input_path");
   }
   const std::vector<ModelAttackSpec> specs = ParseModelAttackList(attacks);
+  std::vector<RenderCamera> cameras;
+  for (const ModelAttackSpec& spec : specs) {
+    if (!AttackNeedsCameras(spec) || !cameras.empty()) continue;
+    if (workspace_options.workspace_path.empty() &&
+        workspace_options.input_path.empty()) {
+      Fail("attack: " + ToString(spec) +
+           " renders the scene: give --workspace_path (the COLMAP workspace "
+           "of its training cameras)");
+    }
+    const Workspace workspace = Workspace::Open(workspace_options);
+    std::vector<size_t> views = workspace.TrainViews(true);
+    if (views.empty()) views = workspace.TrainViews(false);  // one view
+    for (size_t view : views) cameras.push_back(workspace.ViewCamera(view));
+  }
   // Before the work: a missing output folder fails at once.
   CheckOutputFile(output_path);
   ModelData ply = ReadModelFile(input_path);
@@ -69,7 +101,7 @@ int RunAttack(int argc, char** argv) {
   for (const ModelAttackSpec& spec : specs) {
     GaussianModel attacked;
     std::vector<uint32_t> source;
-    ApplyModelAttack(spec, model, rng, &attacked, &source);
+    ApplyModelAttack(spec, model, rng, &attacked, &source, &cameras);
     std::vector<int64_t> composed(source.size());
     for (size_t i = 0; i < source.size(); ++i) composed[i] = parent[source[i]];
     parent = std::move(composed);
@@ -98,5 +130,5 @@ int RunAttack(int argc, char** argv) {
 
 WATERGS_COMMAND(attack,
                 "Attacks a model: 3D distortions, SH truncation, quantisation, "
-                "shuffling, similarity transform, opacity pruning, codecs",
+                "shuffling, similarity transform, pruning, decimation, codecs",
                 watergs::RunAttack);

@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# The watermark through the real web converter, PlayCanvas splat-transform (npm; needs Node >= 22):
+# a watermarked demo model (120x90, short training and embedding) is converted
+#   PLY -> compressed PLY -> PLY  and  PLY -> .spz (version 4, the converter's default) -> PLY
+# by splat-transform, and `watergs extract` must say "watermark present" on every file, the
+# converter's intermediate files included (watergs reads them directly). Also checks that the
+# converter really rewrote the data (the files differ from the input) and kept the count.
+# The tools come from `scripts/install_deps.sh --tests` (npm group, into WATERGS_NPM_PREFIX); if
+# they are missing the test installs them the same way. Exit 77 (skip) only when the npm
+# registry cannot be reached.
+set -euo pipefail
+bin="${WATERGS_BIN:?WATERGS_BIN: the watergs CLI}"
+root="$(cd "$(dirname "$0")/../.." && pwd)"
+scene="$root/datasets_scripts/demo_scene"
+decoder="$root/watermark/models/decoder_48.bin"
+message="text:WGS-26"
+prefix="${WATERGS_NPM_PREFIX:-${XDG_CACHE_HOME:-$HOME/.cache}/watergs/npm}"
+out="$(mktemp -d)"
+trap 'rm -rf "$out"' EXIT
+fail() { echo "splat_transform_test: FAIL: $*" >&2; exit 1; }
+
+node="$prefix/node_modules/.bin/node"
+cli="$prefix/node_modules/@playcanvas/splat-transform/bin/cli.mjs"
+if [ ! -x "$node" ] || [ ! -f "$cli" ]; then
+  command -v npm > /dev/null || fail "no npm client (bash scripts/install_deps.sh --tests installs it)"
+  if ! WATERGS_NPM_PREFIX="$prefix" bash "$root/scripts/install_deps.sh" --npm_only > "$out/npm.log" 2>&1; then
+    if ! timeout 60 npm ping > "$out/ping.log" 2>&1; then
+      echo "splat_transform_test: SKIP: the npm registry is unreachable ($(grep -m 1 'npm error' "$out/ping.log" || tail -n 1 "$out/ping.log")), so splat-transform cannot be installed"
+      exit 77
+    fi
+    cat "$out/npm.log"; fail "installing splat-transform failed with the registry reachable"
+  fi
+fi
+st() { "$node" "$cli" -q -w "$@" > "$out/st.log" 2>&1 || { cat "$out/st.log"; fail "splat-transform $*"; }; }
+echo "splat_transform_test: $("$node" "$cli" --version 2>&1 | head -n 1), node $("$node" --version)"
+
+common=(--workspace_path "$scene" --downscale 4)
+"$bin" train "${common[@]}" --output_path "$out/train" --iterations 300 > "$out/train.log" 2>&1
+"$bin" embed --input_path "$out/train/point_cloud.ply" "${common[@]}" --decoder "$decoder" \
+  --message "$message" --output_path "$out/wm.ply" --iterations 300 > "$out/embed.log" 2>&1 ||
+  { cat "$out/embed.log"; fail "embed"; }
+
+count() { "$bin" ply_info --input_path "$1" | awk '/^Gaussians:/ {print $2}'; }
+n="$(count "$out/wm.ply")"
+verdict() {  # FILE: prints the verdict over the 48 cameras
+  "$bin" extract --input_path "$1" "${common[@]}" --decoder "$decoder" --message "$message" \
+    --json "$out/extract.json" > "$out/extract.txt"
+  python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["verdict"], "(%d of %d bits wrong)" % (round(j["ber"]*j["num_bits"]), j["num_bits"]))' "$out/extract.json"
+}
+check() {  # LABEL FILE
+  local v
+  v="$(verdict "$2")"
+  echo "splat_transform_test: $1: $v"
+  case "$v" in "watermark present"*) ;; *) fail "$1: '$v'";; esac
+  [ "$(count "$2")" = "$n" ] || fail "$1: $(count "$2") Gaussians, the watermarked file has $n"
+}
+check "watermarked PLY" "$out/wm.ply"
+
+st "$out/wm.ply" "$out/wm.compressed.ply"
+st "$out/wm.compressed.ply" "$out/from_cply.ply"
+st "$out/wm.ply" "$out/wm.spz"
+st "$out/wm.spz" "$out/from_spz.ply"
+for f in wm.compressed.ply from_cply.ply wm.spz from_spz.ply; do
+  cmp -s "$out/wm.ply" "$out/$f" && fail "$f is byte-identical to the input: no conversion happened"
+done
+head -c 4 "$out/wm.spz" | grep -q NGSP || fail "wm.spz is not an SPZ version 4 file (no NGSP magic)"
+check "PLY -> compressed PLY (splat-transform)" "$out/wm.compressed.ply"
+check "PLY -> compressed PLY -> PLY (splat-transform)" "$out/from_cply.ply"
+check "PLY -> SPZ v4 (splat-transform)" "$out/wm.spz"
+check "PLY -> SPZ v4 -> PLY (splat-transform)" "$out/from_spz.ply"
+echo "splat_transform_test: passed"
