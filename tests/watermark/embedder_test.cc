@@ -23,7 +23,9 @@
 #include "tests/common/cuda_test.h"
 #include "tests/common/embed_scene.h"
 #include "tests/common/look_at.h"
+#include "watermark/feature_decoder.h"
 #include "watermark/hidden_model.h"
+#include "watermark/network_file.h"
 
 namespace watergs {
 namespace {
@@ -485,6 +487,37 @@ TEST(EmbedderCuda, DeviceResidentFullFrameStepsMatchTheCpuEmbedder) {
   EmbedOptions o = DeviceParityOptions(8);
   o.full_frame_image_loss = true;
   ExpectDeviceResidentRunMatchesCpu(o, 40, 28);
+}
+
+// The shipped decoder's kind, the random-feature decoder: with its CUDA
+// twin (LoadBitDecoder, --device cuda) the embedder takes the
+// device-resident step too, whole-frame as the demo runs it, and its steps
+// match the CPU embedder with the CPU decoder read from the same file.
+TEST(EmbedderCuda, DeviceResidentStepsWithTheFeatureDecoderMatchTheCpu) {
+  WATERGS_REQUIRE_CUDA();
+  Scene s = MakeScene(2, 40, 28);
+  testing::OffsetPhotos(&s);
+  FeatureDecoderConfig config;
+  config.num_bits = 16;
+  config.channels = 64;
+  FeatureNet net(config, 3);
+  std::mt19937 rng(8);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  for (float& w : net.linear.weight.value) w = normal(rng);
+  const std::string path =
+      (std::filesystem::temp_directory_path() /
+       ("watergs_embedder_feature_" + std::to_string(::getpid()) + ".bin"))
+          .string();
+  WriteNetworkFile(path, FeatureNetToFile(net));
+  const std::unique_ptr<BitDecoder> cpu_decoder =
+      LoadBitDecoder(path, Device::kCpu, 16);
+  const std::unique_ptr<BitDecoder> gpu_decoder =
+      LoadBitDecoder(path, Device::kCuda, 16);
+  std::filesystem::remove(path);
+  EmbedOptions o = DeviceParityOptions(8);
+  o.full_frame_image_loss = true;
+  ExpectRunsMatch(o, s, *cpu_decoder, *gpu_decoder, RandomBits(16, 9),
+                  Device::kCuda);
 }
 
 // The CUDA decoder alone (behind its host interface) in the host
