@@ -4,7 +4,7 @@
 # Eigen/OpenCV/Ceres/glog/Boost, no package registry), where
 # scripts/gpu_check.sh unpacks and runs it in one call:
 #   bash scripts/gpu_bundle.sh [--build DIR] [--out DIR]      (project root)
-# DIR defaults: build, .gpu (the out folder is added to .git/info/exclude).
+# DIR defaults: build, .gpu (an out folder in the checkout ignores itself).
 # Bundle layout (OUT/bundle.tar.xz):
 #   paths            line 1: the source root, line 2: the build folder, both
 #                    absolute: gpu_check.sh puts them back at those paths, so
@@ -70,13 +70,9 @@ done | awk '/=> \//{print $1, $3}' | sort -u |
 printf '%s\n%s\n' "$src" "$build" > "$stage/paths"
 mkdir -p "$out"
 out="$(cd "$out" && pwd -P)"
-case "$out" in
-  "$src"/*) # An out folder inside the checkout stays out of git.
-    exclude="$(git -C "$src" rev-parse --path-format=absolute --git-path info/exclude)"
-    entry="/${out#"$src"/}/"
-    mkdir -p "$(dirname "$exclude")"
-    grep -qxF "$entry" "$exclude" 2>/dev/null || echo "$entry" >> "$exclude" ;;
-esac
+# An out folder inside the checkout ignores itself (a .gitignore of "*"),
+# which touches no git metadata another worktree shares.
+case "$out" in "$src"/*) printf '*\n' > "$out/.gitignore" ;; esac
 tar -C "$stage" -cf - paths repo build libs | xz -T2 -6 > "$out/bundle.tar.xz"
 echo "gpu_bundle: $(du -h "$out/bundle.tar.xz" | cut -f1) in $out/bundle.tar.xz" \
   "($(ls "$stage/libs" | wc -l) libraries); on the GPU machine: bash scripts/gpu_check.sh --bundle ${out#"$src"/}/bundle.tar.xz"
