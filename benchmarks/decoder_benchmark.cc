@@ -1,22 +1,33 @@
-// Decoder benchmark: frozen-decoder forward + input-gradient time at 128x128
-// and 256x256 with its GFLOP/s; the 64->64 3x3 convolution layer against
-// Eigen's own float matrix product of the same shape, measured in the same
-// run; and training throughput (images/s) of the default configuration
-// (crop 128, batch 8, identity noise, 48 bits). Medians of repeated runs.
+// Decoder benchmark, for every decoder kind a weights file can hold.
 //
-// --device cuda instead times the GPU path (watermark/cuda/): CudaDecoder
-// Logits and InputGradient at 128x128 and 256x256, and CudaDecoderTrainer
-// steps at the default configuration and at the paper's (crop 256, batch
-// 16), each in float32 and with TF32 tensor cores allowed; first it times
-// the host work of a GPU training step (batch assembly, host noise layers),
-// which needs no GPU. Without a usable GPU it says why and exits 0.
+// HiDDeN decoder ("hidden-model" files): frozen-decoder forward + input-
+// gradient time at 128x128 and 256x256 with its GFLOP/s; the 64->64 3x3
+// convolution layer against Eigen's own float matrix product of the same
+// shape, measured in the same run; and training throughput (images/s) of the
+// default configuration (crop 128, batch 8, identity noise, 48 bits). With
+// --device cuda: CudaDecoder Logits and InputGradient at 128x128 and 256x256,
+// and CudaDecoderTrainer steps at the default configuration and at the
+// paper's (crop 256, batch 16), each in float32 and with TF32 tensor cores
+// allowed; first the host work of a GPU training step (batch assembly, host
+// noise layers), which needs no GPU.
 //
-// Usage: decoder_benchmark [--device cpu|cuda] [weights.bin] [repeats=5]
+// Random-feature decoder ("feature-decoder" files, the shipped default):
+// Logits and forward + input gradient at 128x128, 256x256 and a 1280x800
+// frame (what `embed --crop_size 0` decodes), with GFLOP/s; with --device
+// cuda the same for CudaFeatureDecoder, in float32 and with TF32 allowed.
+//
+// --device cuda without a usable GPU says why on one line and times the CPU.
+// Medians of repeated runs.
+//
+// Usage: decoder_benchmark [--device cpu|cuda|auto] [--repeats N]
+//                          [WEIGHTS.bin ...]
+// Without WEIGHTS: a randomly initialised decoder of each kind.
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <memory>
 #include <random>
 #include <string>
@@ -24,14 +35,18 @@
 
 #include "benchmarks/benchmark_util.h"
 #include "gaussian/device.h"
+#include "gaussian/error.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"
+#include "watermark/feature_decoder.h"
+#include "watermark/network_file.h"
 
 #ifdef WATERGS_WITH_CUDA
 #include <cuda_runtime.h>
 
 #include "gaussian/cuda/cuda_device.h"
 #include "watermark/cuda/cuda_decoder_training.h"
+#include "watermark/cuda/cuda_feature_decoder.h"
 #include "watermark/cuda/cuda_hidden.h"
 #endif
 
@@ -41,17 +56,24 @@ using watergs::bench::MedianSeconds;
 
 using Clock = std::chrono::steady_clock;
 
-// CPU timings (the README's figures).
+// A HiDDeN model from `weights` (random weights when empty).
+std::unique_ptr<watergs::HiddenModel> HiddenOf(const std::string& weights) {
+  using namespace watergs;
+  return weights.empty()
+             ? std::make_unique<HiddenModel>(HiddenConfig(), true, 1)
+             : LoadHiddenModel(weights, true);
+}
+
+// CPU timings of a HiDDeN decoder (the README's figures).
 int RunCpu(const std::string& weights, int repeats) {
   using namespace watergs;
   HiddenConfig config;
-  std::unique_ptr<HiddenModel> model =
-      weights.empty() ? std::make_unique<HiddenModel>(config, true, 1)
-                      : LoadHiddenModel(weights, true);
-  std::printf("decoder_benchmark: %d bits, %d channels, %s, %d threads max\n",
-              model->config.num_bits, model->config.channels,
-              weights.empty() ? "random weights" : weights.c_str(),
-              Eigen::nbThreads());
+  std::unique_ptr<HiddenModel> model = HiddenOf(weights);
+  std::printf(
+      "decoder_benchmark: hidden-model, %d bits, %d channels, %s, %d threads "
+      "max\n",
+      model->config.num_bits, model->config.channels,
+      weights.empty() ? "random weights" : weights.c_str(), Eigen::nbThreads());
 
   // Frozen decoder: forward + input gradient (backward-data of every layer).
   Decoder decoder(model.get());
@@ -245,25 +267,19 @@ void CudaTrainerTimings(int crop, int batch, watergs::NoiseKind kind, bool tf32,
 }
 #endif
 
-// GPU timings; the host part first (it needs no GPU).
+// GPU timings of a HiDDeN decoder (the caller checked the GPU); the host
+// part first.
 int RunCuda([[maybe_unused]] const std::string& weights, int repeats) {
   using namespace watergs;
   HostWorkPerStep(repeats);
-  std::string why;
-  if (!CudaAvailable(&why)) {
-    std::printf("decoder_benchmark --device cuda: no GPU timings: %s\n",
-                why.c_str());
-    return 0;
-  }
 #ifdef WATERGS_WITH_CUDA
-  HiddenConfig config;
-  std::unique_ptr<HiddenModel> model =
-      weights.empty() ? std::make_unique<HiddenModel>(config, true, 1)
-                      : LoadHiddenModel(weights, true);
-  std::printf("decoder_benchmark --device cuda: %s, %d bits, %d channels, %s\n",
-              CudaDeviceDescription().c_str(), model->config.num_bits,
-              model->config.channels,
-              weights.empty() ? "random weights" : weights.c_str());
+  std::unique_ptr<HiddenModel> model = HiddenOf(weights);
+  std::printf(
+      "decoder_benchmark --device cuda: %s, hidden-model, %d bits, %d "
+      "channels, %s\n",
+      CudaDeviceDescription().c_str(), model->config.num_bits,
+      model->config.channels,
+      weights.empty() ? "random weights" : weights.c_str());
   for (bool tf32 : {false, true}) {
     CudaDecoderTimings(*model, tf32, repeats);
     CudaTrainerTimings(128, 8, NoiseKind::kIdentity, tf32, repeats);
@@ -273,26 +289,212 @@ int RunCuda([[maybe_unused]] const std::string& weights, int repeats) {
 #endif
   return 0;
 }
+
+// A random-feature decoder read from `weights` (random weights when empty;
+// a fresh network's projection is zero, which times the same).
+std::unique_ptr<watergs::FeatureNet> FeatureNetOf(const std::string& weights) {
+  using namespace watergs;
+  if (weights.empty()) {
+    return std::make_unique<FeatureNet>(FeatureDecoderConfig(), 1);
+  }
+  return FeatureNetFromFile(weights, ReadNetworkFile(weights));
+}
+
+// Logits, and forward + input gradient, of `decoder` at the crop sizes
+// embed decodes and at a full 1280x800 frame; `label` starts each line.
+void FeatureTimings(watergs::BitDecoder& decoder, double macs_per_pixel,
+                    const char* label, int repeats) {
+  using namespace watergs;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  const int sizes[][2] = {{128, 128}, {256, 256}, {1280, 800}};
+  for (const auto& size : sizes) {
+    ImageRGB image(size[0], size[1]);
+    for (float& v : image.data) v = unit(rng);
+    const std::vector<float> dlogits(decoder.NumBits(), 0.01f);
+    ImageRGB grad;
+    // A new image each call: the decoder skips the forward pass of the
+    // image it last saw (a memcmp), which would be timed instead.
+    const double forward = MedianSeconds(repeats, [&] {
+      image.data[0] = unit(rng);
+      decoder.Logits(image);
+    });
+    const double both = MedianSeconds(repeats, [&] {
+      image.data[0] = unit(rng);
+      decoder.InputGradient(image, dlogits, &grad);
+    });
+    const double macs = macs_per_pixel * double(size[0]) * size[1];
+    std::printf(
+        "%s %dx%d: Logits %.2f ms (%.1f GFLOP/s), forward+input-gradient "
+        "%.2f ms (%.1f GFLOP/s)\n",
+        label, size[0], size[1], 1e3 * forward, 2.0 * macs / forward * 1e-9,
+        1e3 * both, 4.0 * macs / both * 1e-9);
+  }
+}
+
+void PrintFeatureHeader(const watergs::FeatureNet& net,
+                        const std::string& weights, const std::string& where) {
+  const watergs::FeatureDecoderConfig& config = net.config();
+  std::printf(
+      "decoder_benchmark%s: feature-decoder, %d bits, %d channels, pool %d, "
+      "kernel %d, %s\n",
+      where.c_str(), config.num_bits, config.channels, config.pool,
+      config.kernel, weights.empty() ? "random weights" : weights.c_str());
+}
+
+int RunFeatureCpu(const std::string& weights, int repeats) {
+  using namespace watergs;
+  std::unique_ptr<FeatureNet> net = FeatureNetOf(weights);
+  PrintFeatureHeader(*net, weights,
+                     " (" + std::to_string(Eigen::nbThreads()) + " threads)");
+  const double macs = net->MacsPerPixel();
+  FeatureDecoder decoder(std::move(net));
+  FeatureTimings(decoder, macs, "feature decoder", repeats);
+  return 0;
+}
+
+int RunFeatureCuda([[maybe_unused]] const std::string& weights,
+                   [[maybe_unused]] int repeats) {
+#ifdef WATERGS_WITH_CUDA
+  using namespace watergs;
+  std::unique_ptr<FeatureNet> net = FeatureNetOf(weights);
+  PrintFeatureHeader(*net, weights,
+                     " --device cuda: " + CudaDeviceDescription());
+  for (bool tf32 : {false, true}) {
+    CudaFeatureDecoder decoder(*net, tf32);
+    FeatureTimings(
+        decoder, net->MacsPerPixel(),
+        tf32 ? "cuda feature decoder (TF32)" : "cuda feature decoder (float32)",
+        repeats);
+  }
+#endif
+  return 0;
+}
+
+// What the command line asks for.
+struct Args {
+  // cpu, cuda or auto, as typed.
+  std::string device = "cpu";
+  int repeats = 5;
+  // Weights files; none: a random decoder of each kind.
+  std::vector<std::string> weights;
+};
+
+constexpr char kUsage[] =
+    "decoder_benchmark [--device cpu|cuda|auto] [--repeats N] "
+    "[WEIGHTS.bin ...]";
+
+// Strict: every word is a known option with its value or an existing file;
+// anything else is a one-line error (thrown as watergs::Error).
+Args ParseArgs(int argc, char** argv) {
+  using watergs::Fail;
+  Args args;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    std::string value;
+    const bool is_option = arg.rfind("--", 0) == 0;
+    const size_t eq = arg.find('=');
+    const std::string name = is_option ? arg.substr(0, eq) : "";
+    if (is_option && name != "--device" && name != "--repeats") {
+      Fail("unknown option '" + watergs::Printable(arg) + "'");
+    }
+    if (is_option) {
+      if (eq != std::string::npos) {
+        value = arg.substr(eq + 1);
+      } else if (i + 1 < argc) {
+        value = argv[++i];
+      } else {
+        Fail(name + " needs a value");
+      }
+    }
+    if (name == "--device") {
+      if (value != "cpu" && value != "cuda" && value != "auto") {
+        Fail("--device: expected cpu, cuda or auto, got '" +
+             watergs::Printable(value) + "'");
+      }
+      args.device = value;
+    } else if (name == "--repeats") {
+      size_t used = 0;
+      int repeats = 0;
+      try {
+        repeats = std::stoi(value, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used == 0 || used != value.size() || repeats < 1) {
+        Fail("--repeats: expected a whole number >= 1, got '" +
+             watergs::Printable(value) + "'");
+      }
+      args.repeats = repeats;
+    } else if (!std::filesystem::is_regular_file(arg)) {
+      Fail("'" + watergs::Printable(arg) +
+           "' is not a weights file (the repeat count is --repeats N)");
+    } else {
+      args.weights.push_back(arg);
+    }
+  }
+  return args;
+}
+
+// The kind of a weights file ("hidden-model", "feature-decoder", ...).
+std::string KindOf(const std::string& weights) {
+  return watergs::ReadNetworkFile(weights).kind;
+}
+
+int Run(const Args& args) {
+  using namespace watergs;
+  // --device cuda falls back to the CPU where there is no GPU (a benchmark
+  // on a GPU-less machine still has CPU figures to give); auto as every
+  // command's --device (ResolveDevice says the fallback on stderr).
+  Device device = Device::kCpu;
+  if (args.device == "cuda") {
+    std::string why;
+    if (CudaAvailable(&why)) {
+      device = Device::kCuda;
+    } else {
+      std::printf("decoder_benchmark --device cuda: no GPU (%s): CPU timings\n",
+                  why.c_str());
+    }
+  } else {
+    device = ResolveDevice(args.device);
+  }
+  // (file, kind) pairs; no files: a random decoder of each kind.
+  std::vector<std::pair<std::string, std::string>> decoders;
+  for (const std::string& path : args.weights) {
+    decoders.emplace_back(path, KindOf(path));
+  }
+  if (decoders.empty()) {
+    decoders = {{"", "hidden-model"}, {"", kFeatureDecoderKind}};
+  }
+  for (const auto& [path, kind] : decoders) {
+    if (kind == kFeatureDecoderKind) {
+      if (device == Device::kCuda) {
+        RunFeatureCuda(path, args.repeats);
+      } else {
+        RunFeatureCpu(path, args.repeats);
+      }
+    } else if (kind == "hidden-model" || kind == "hidden-checkpoint") {
+      if (device == Device::kCuda) {
+        RunCuda(path, args.repeats);
+      } else {
+        RunCpu(path, args.repeats);
+      }
+    } else {
+      FailAt(path, "holds a '" + kind +
+                       "', not a decoder (hidden-model or feature-decoder)");
+    }
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string device = "cpu";
-  std::vector<std::string> positional;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--device" && i + 1 < argc) {
-      device = argv[++i];
-    } else if (arg.rfind("--device=", 0) == 0) {
-      device = arg.substr(9);
-    } else {
-      positional.push_back(arg);
-    }
+  try {
+    return Run(ParseArgs(argc, argv));
+  } catch (const watergs::Error& e) {
+    std::fprintf(stderr, "decoder_benchmark: %s (usage: %s)\n", e.what(),
+                 kUsage);
+    return 2;
   }
-  const std::string weights = positional.size() > 0 ? positional[0] : "";
-  const int repeats =
-      positional.size() > 1 ? std::atoi(positional[1].c_str()) : 5;
-  if (device == "cpu") return RunCpu(weights, repeats);
-  if (device == "cuda") return RunCuda(weights, repeats);
-  std::fprintf(stderr, "decoder_benchmark: --device must be cpu or cuda\n");
-  return 2;
 }

@@ -2,6 +2,9 @@
 // compiled with the CUDA backend.
 #include "gaussian/device.h"
 
+#include <iostream>
+#include <mutex>
+
 #include "gaussian/error.h"
 
 #ifdef WATERGS_WITH_CUDA
@@ -28,7 +31,7 @@ bool CudaAvailable(std::string* why) {
 #endif
 }
 
-Device ResolveDevice(const std::string& text) {
+Device ResolveDevice(const std::string& text, std::ostream* note, bool* noted) {
   if (text == "cpu") return Device::kCpu;
   if (text != "cuda" && text != "auto") {
     Fail("--device: expected cpu, cuda or auto, got '" + Printable(text) + "'");
@@ -36,7 +39,18 @@ Device ResolveDevice(const std::string& text) {
   std::string why;
   if (CudaAvailable(&why)) return Device::kCuda;
   if (text == "cuda") Fail("--device cuda: " + why);
+  if (note && !*noted) {
+    *note << "watergs: --device auto: running on the CPU (" << why << ")\n";
+    *noted = true;
+  }
   return Device::kCpu;
+}
+
+Device ResolveDevice(const std::string& text) {
+  static std::mutex mutex;
+  static bool noted = false;
+  std::lock_guard<std::mutex> lock(mutex);
+  return ResolveDevice(text, &std::cerr, &noted);
 }
 
 std::unique_ptr<Rasterizer> MakeRasterizer(Device device) {

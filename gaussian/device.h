@@ -3,6 +3,7 @@
 // cpu|cuda|auto` goes through here, and so does the choice of rasterizer.
 #pragma once
 
+#include <iosfwd>
 #include <memory>
 #include <string>
 
@@ -21,9 +22,14 @@ std::string DeviceName(Device device);
 bool CudaAvailable(std::string* why = nullptr);
 
 // "cpu", "cuda" or "auto" -> the device to use: auto picks CUDA when
-// CudaAvailable(), else the CPU. Throws Error for another word, and for
-// "cuda" when CUDA is not available (saying why).
+// CudaAvailable(), else the CPU and says so, with why, on one stderr line
+// once per process (a pipeline resolves the device of each stage). Throws
+// Error for another word, and for "cuda" when CUDA is not available
+// (saying why).
 Device ResolveDevice(const std::string& text);
+// The same with the note going to `note` unless *noted (then set): the
+// process-wide one above is ResolveDevice(text, &std::cerr, &flag).
+Device ResolveDevice(const std::string& text, std::ostream* note, bool* noted);
 
 // The rasterizer for `device` (CPU: the OpenMP one; CUDA: cuda/).
 std::unique_ptr<Rasterizer> MakeRasterizer(Device device);

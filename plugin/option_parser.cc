@@ -47,9 +47,10 @@ OptionParser::OptionParser(std::string command, std::string summary)
       "project_path", po::value<std::string>(&project_path_),
       "An .ini file holding any of these options as `name = value`")(
       "device", po::value<std::string>(&device_text_)->default_value("cpu"),
-      "cpu, cuda or auto (CUDA when built with it and a GPU is visible). "
-      "The default stays cpu until the CUDA parity tests have passed on a "
-      "GPU (docs/cuda.md)");
+      "cpu, cuda or auto (auto: CUDA when built with it and a GPU is "
+      "visible, else the CPU, said once on stderr). The default is cpu; auto "
+      "becomes the default once a GPU run has passed the CUDA parity tests "
+      "(docs/cuda.md)");
 }
 
 std::string OptionParser::ShortestText(double value) {

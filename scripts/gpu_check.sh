@@ -1,79 +1,136 @@
 #!/usr/bin/env bash
-# GPU verification of the CUDA backend (issue 8), for the device machine:
-# builds with CUDA for the local GPU, runs the CUDA parity tests (they skip
-# without a GPU), compute-sanitizer on the rasterizer's hardest tests, and the
-# benchmarks on cuda and cpu; logs go to OUT (default $OUT, else ./gpu_check).
-# A device call is limited to 10 minutes and the build stays on a warm
-# machine, so the stages can run in separate calls:
-#   bash scripts/gpu_check.sh [OUT] [build] [tests] [sanitize] [bench]
-# (no stage named: all four). Exit status: non-zero if a stage failed.
+# GPU verification of the CUDA backend on a bare CUDA machine (nvcc, cuDNN,
+# cuBLAS, compute-sanitizer; none of the project's Debian libraries, no
+# package registry), in one call, from the bundle scripts/gpu_bundle.sh made
+# of a build here:
+#   bash scripts/gpu_check.sh [--bundle FILE] [--out DIR] [--deadline S]
+#                             [STAGE ...]
+# FILE defaults to .gpu/bundle.tar.xz, DIR to gpu_out, S (seconds for all
+# stages together, each stage also capped) to 540. Stages, in this order
+# when none is named:
+#   parity    the CUDA parity tests of every module (*Cuda*:*CUDA*)
+#   demo      the demo scene's train -> embed (--crop_size 0, the shipped
+#             decoder) -> extract, all --device cuda
+#   bench     raster_benchmark (with the 1M-Gaussian 1920x1080 scene),
+#             train_benchmark, embed_benchmark (1M Gaussians, 1280x800),
+#             decoder_benchmark of each decoder kind, all --device cuda
+#   sanitize  compute-sanitizer memcheck, racecheck and synccheck on the
+#             tests of the rasterizer, the device-resident embedding step
+#             and the feature decoder twin
+# Logs: DIR/<stage>.txt and DIR/env.txt; a summary on stdout. Exit status:
+# 0 when every stage ran clean, 1 when one failed, 2 on bad arguments or a
+# bundle that cannot be placed.
 set -uo pipefail
-cd "$(dirname "$0")/.."
-out="${1:-${OUT:-gpu_check}}"
-shift || true
-stages="${*:-build tests sanitize bench}"
-mkdir -p "$out"
-build=build-gpu
-status=0
+die() { echo "gpu_check: $*" >&2; exit 2; }
+usage="gpu_check.sh [--bundle FILE] [--out DIR] [--deadline S] [parity] [demo] [bench] [sanitize]"
+bundle=.gpu/bundle.tar.xz out=gpu_out deadline=540 stages=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --bundle|--out|--deadline)
+      [ $# -ge 2 ] || die "$1 needs a value (usage: $usage)"
+      case "$1" in
+        --bundle) bundle="$2" ;;
+        --out) out="$2" ;;
+        --deadline) [[ "$2" =~ ^[1-9][0-9]*$ ]] || die "--deadline: expected seconds > 0, got '$2'"
+          deadline="$2" ;;
+      esac
+      shift 2 ;;
+    -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+    parity|demo|bench|sanitize) stages+=("$1"); shift ;;
+    *) die "unknown argument '$1' (usage: $usage)" ;;
+  esac
+done
+[ ${#stages[@]} -gt 0 ] || stages=(parity demo bench sanitize)
+[ -f "$bundle" ] || die "no bundle '$bundle' (make it here with scripts/gpu_bundle.sh)"
+[ "${GPU_CHECK_PARSE_ONLY:-0}" = 1 ] && { echo "stages: ${stages[*]}; bundle $bundle; out $out; deadline $deadline"; exit 0; }
 
-stage_build() {
-  nvidia-smi > "$out/nvidia_smi.txt" 2>&1
-  local arch
-  arch=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d '.')
-  cmake -S . -B "$build" -DWATERGS_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES="${arch:-90}" \
-    > "$out/configure.txt" 2>&1 || { tail -20 "$out/configure.txt"; return 1; }
-  cmake --build "$build" -j"$(nproc)" > "$out/build.txt" 2>&1 ||
-    { grep -m20 -E "error" "$out/build.txt"; return 1; }
-}
+t0=$SECONDS
+# Seconds a step may take: its cap, or what is left of the deadline.
+lim() { local left=$((deadline - (SECONDS - t0))); [ "$left" -lt "$1" ] && echo $((left > 1 ? left : 1)) || echo "$1"; }
+mkdir -p "$out"; out="$(cd "$out" && pwd -P)"
+here="$(pwd -P)"
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+tar -xJf "$bundle" -C "$tmp" || die "cannot unpack $bundle"
+src=$(sed -n 1p "$tmp/paths"); build=$(sed -n 2p "$tmp/paths")
+# The sources go back where the build was made (compiled-in paths), unless
+# this checkout is already there.
+if [ -d "$src" ] && [ "$(cd "$src" && pwd -P)" = "$here" ]; then :
+elif [ ! -e "$src" ]; then mkdir -p "$(dirname "$src")" && mv "$tmp/repo" "$src" || die "cannot place the sources at $src"
+else die "$src exists and is not this checkout: refusing to touch it"; fi
+mkdir -p "$build" && cp -r "$tmp/build/." "$build/" || die "cannot place the build at $build"
+libs="$tmp/libs"
+# The machine's own cuDNN 9 and cuBLAS 13 (system or pip-installed).
+for d in $(find /usr/local /usr/lib /opt -name 'libcudnn.so.9' -o -name 'libcublas.so.13' 2>/dev/null | xargs -r -n1 dirname | sort -u); do
+  libs="$libs:$d"
+done
+export LD_LIBRARY_PATH="$libs${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+export WATERGS_BIN="$build/plugin/watergs"
+cd "$src"
+W="$build/plugin/watergs" T="$build/tests" B="$build/benchmarks"
+{ date; nvidia-smi; echo "LD_LIBRARY_PATH=$LD_LIBRARY_PATH"
+  for f in "$W" "$T"/watergs_*_test "$B"/*_benchmark; do ldd "$f" | grep "not found" | sed "s|^|$(basename "$f"): |"; done
+} > "$out/env.txt" 2>&1
 
-stage_tests() {
-  local rc=0 module
-  : > "$out/parity_tests.txt"
-  for module in gaussian distortion watermark plugin; do
-    "$build/tests/watergs_${module}_test" --gtest_filter='*Cuda*:*CUDA*' \
-      >> "$out/parity_tests.txt" 2>&1 || rc=1
-  done
-  grep -E "^\[  (PASSED|FAILED|SKIPPED) |^\[  FAILED  \]" "$out/parity_tests.txt" | tail -40
+# Runs "$@" with a time limit of `lim $1` seconds, logging its exit status.
+step() { local cap=$1 name=$2; shift 2; local s=$SECONDS
+  timeout "$(lim "$cap")" "$@"; local rc=$?
+  echo "== $name: exit $rc in $((SECONDS - s)) s"; return $rc; }
+
+stage_parity() {
+  local rc=0 m
+  for m in gaussian distortion watermark plugin; do
+    step 120 "$m parity" "$T/watergs_${m}_test" --gtest_filter='*Cuda*:*CUDA*' || rc=1
+  done > "$out/parity.txt" 2>&1
+  grep -E "^\[  FAILED  \]|^\[  PASSED  \]|^== " "$out/parity.txt"
   return $rc
 }
 
-# Memory errors, shared-memory races and sync errors in the kernels the
-# parity tests exercise hardest (multi-batch tiles, crops, empty models).
-stage_sanitize() {
-  local rc=0 tool
-  command -v compute-sanitizer >/dev/null 2>&1 || { echo "no compute-sanitizer"; return 0; }
-  for tool in memcheck racecheck synccheck; do
-    compute-sanitizer --tool "$tool" --error-exitcode 9 \
-      "$build/tests/watergs_gaussian_test" --gtest_filter='CudaRasterizer.DeepTileStackMatchesCpu:CudaRasterizer.CropRectsMatchCpu:CudaRasterizer.EmptyModelRendersBackground:CudaRasterizer.ShDegreeZeroModelMatchesCpu' \
-      > "$out/sanitizer_$tool.txt" 2>&1 || { rc=1; echo "compute-sanitizer $tool: errors (sanitizer_$tool.txt)"; }
-    # The device-resident embedding step (distortion scatter, decoder patch).
-    compute-sanitizer --tool "$tool" --error-exitcode 9 \
-      "$build/tests/watergs_watermark_test" --gtest_filter='EmbedderCuda.DeviceResident*' \
-      > "$out/sanitizer_embed_$tool.txt" 2>&1 || { rc=1; echo "compute-sanitizer $tool: errors (sanitizer_embed_$tool.txt)"; }
-  done
+stage_demo() {
+  local rc=0 sc=datasets_scripts/demo_scene dec=watermark/models/decoder_48.bin o="$tmp/demo"
+  { step 150 train "$W" train --device cuda --workspace_path $sc --output_path "$o/train" --downscale 2 \
+      --iterations 2000 --densify_until_iter 1000 --eval --test_iterations 2000 || rc=1
+    step 150 embed "$W" embed --device cuda --input_path "$o/train/point_cloud.ply" --workspace_path $sc \
+      --downscale 2 --decoder $dec --message text:WGS-26 --output_path "$o/wm.ply" --iterations 1500 \
+      --crop_size 0 --free_view_fraction 0.5 --gamma 0.03 --densify off --check_every 250 --check_views 4 --eval || rc=1
+    for f in "$o/train/point_cloud.ply" "$o/wm.ply"; do
+      step 40 "extract $(basename "$f")" "$W" extract --device cuda --input_path "$f" --workspace_path $sc \
+        --downscale 2 --decoder $dec --message text:WGS-26 || rc=1
+    done
+  } > "$tmp/demo_raw.txt" 2>&1
+  # Progress bars redraw with \r: keep the lines that are not bars.
+  tr '\r' '\n' < "$tmp/demo_raw.txt" | grep -v -E '^(train|embed) \[' > "$out/demo.txt"
+  grep -E "^== |BER|verdict|it/s|device" "$out/demo.txt"
   return $rc
 }
 
 stage_bench() {
-  {
-    "$build/benchmarks/raster_benchmark" --device cuda --threads "$(nproc)"
-    "$build/benchmarks/raster_benchmark" --device cuda --scenes 1000 --repeats 9
-    "$build/benchmarks/train_benchmark" --device cuda --json "$out/train_cuda.json"
-    "$build/benchmarks/decoder_benchmark" --device cuda 5
-    # Embedding: the 1M-Gaussian 1 MP scene (issue 8's 10k-iteration target)
-    # and the demo scene after a short GPU training run.
-    "$build/benchmarks/embed_benchmark" --synthetic 1000000 \
-      watermark/models/hidden_48.bin 20 cuda
-    "$build/watergs" train --device cuda --workspace_path datasets_scripts/demo_scene \
-      --output_path "$build/demo_gpu" --iterations 3000 --downscale 2 > /dev/null &&
-      "$build/benchmarks/embed_benchmark" "$build/demo_gpu/point_cloud.ply" \
-        datasets_scripts/demo_scene watermark/models/hidden_48.bin 30 2 cuda
-  } > "$out/benchmarks.txt" 2>&1
-  tail -40 "$out/benchmarks.txt"
+  local rc=0
+  { step 90 raster_benchmark "$B/raster_benchmark" --device cuda --scenes 1000 --repeats 9 || rc=1
+    step 60 train_benchmark "$B/train_benchmark" --device cuda || rc=1
+    step 120 embed_benchmark "$B/embed_benchmark" --synthetic 1000000 watermark/models/decoder_48.bin 20 cuda || rc=1
+    step 90 decoder_benchmark "$B/decoder_benchmark" --device cuda --repeats 5 \
+      watermark/models/hidden_48.bin watermark/models/decoder_48.bin || rc=1
+  } > "$out/bench.txt" 2>&1
+  grep -E "^== |1M|it/s|10k|decoder" "$out/bench.txt" | head -40
+  return $rc
 }
 
-for stage in $stages; do
-  echo "== $stage"
-  "stage_$stage" || status=1
+stage_sanitize() {
+  local rc=0 tool
+  for tool in memcheck racecheck synccheck; do
+    step 60 "$tool rasterizer" compute-sanitizer --tool $tool --error-exitcode 9 \
+      "$T/watergs_gaussian_test" --gtest_filter='CudaRasterizer.*' || rc=1
+    step 60 "$tool embedding" compute-sanitizer --tool $tool --error-exitcode 9 \
+      "$T/watergs_watermark_test" --gtest_filter='EmbedderCuda.DeviceResident*:CudaFeatureDecoder.*' || rc=1
+  done > "$out/sanitize.txt" 2>&1
+  grep -E "^== |ERROR SUMMARY" "$out/sanitize.txt"
+  return $rc
+}
+
+status=0
+for st in "${stages[@]}"; do
+  echo "==== $st ($((SECONDS - t0)) s)"
+  "stage_$st" || status=1
 done
+echo "==== done in $((SECONDS - t0)) s, status $status"
 exit $status

@@ -1,7 +1,6 @@
-// LoadBitDecoder: by the weights file's kind, the random-feature decoder
-// (CPU; it costs a few hundred multiply-adds a pixel, so a GPU run keeps it
-// on the host), or the HiDDeN decoder: the CPU Decoder, or with the CUDA
-// backend the CudaDecoder read from the same file.
+// LoadBitDecoder: by the weights file's kind, the random-feature decoder or
+// the HiDDeN decoder, on the CPU, or with the CUDA backend their CUDA twins
+// (CudaFeatureDecoder, CudaDecoder) read from the same file.
 #include "watermark/bit_decoder.h"
 
 #include <cstring>
@@ -13,6 +12,7 @@
 #include "watermark/network_image.h"
 
 #ifdef WATERGS_WITH_CUDA
+#include "watermark/cuda/cuda_feature_decoder.h"
 #include "watermark/cuda/cuda_hidden.h"
 #endif
 
@@ -68,10 +68,12 @@ void CachedTensorDecoder::InputGradient(const ImageRGB& image,
 std::unique_ptr<BitDecoder> LoadBitDecoder(const std::string& path,
                                            Device device, int expected_bits) {
   const NetworkFile file = ReadNetworkFile(path);
-  if (file.kind == kFeatureDecoderKind)
-    return std::make_unique<FeatureDecoder>(
-        FeatureNetFromFile(path, file, expected_bits));
+  const bool feature = file.kind == kFeatureDecoderKind;
   if (device == Device::kCpu) {
+    if (feature) {
+      return std::make_unique<FeatureDecoder>(
+          FeatureNetFromFile(path, file, expected_bits));
+    }
     return std::make_unique<Decoder>(Decoder::Load(path, expected_bits));
   }
   std::string why;
@@ -80,6 +82,9 @@ std::unique_ptr<BitDecoder> LoadBitDecoder(const std::string& path,
   }
 #ifdef WATERGS_WITH_CUDA
   // No TF32: the GPU decoder then reads what the CPU one does (parity tests).
+  if (feature) {
+    return CudaFeatureDecoder::Load(path, expected_bits, false);
+  }
   return std::make_unique<CudaDecoder>(
       CudaDecoder::Load(path, expected_bits, false));
 #else

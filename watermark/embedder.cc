@@ -20,7 +20,7 @@
 #ifdef WATERGS_WITH_CUDA
 #include "gaussian/cuda/cuda_rasterizer_device.h"
 #include "watermark/cuda/cuda_embedding_step.h"
-#include "watermark/cuda/cuda_hidden.h"
+#include "watermark/cuda/device_patch_decoder.h"
 #endif
 
 namespace watergs {
@@ -252,7 +252,8 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   // GPU; the compact and bfloat16 moments have no CUDA Adam and keep the
   // host step (the rasterizer and decoder still run on the GPU).
   auto* cuda_rasterizer = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
-  auto* cuda_decoder = dynamic_cast<CudaDecoder*>(decoder_);
+  // Either CUDA decoder (HiDDeN or random-feature) reads the render in place.
+  auto* cuda_decoder = dynamic_cast<DevicePatchDecoder*>(decoder_);
   // Decoder jitter and the margin run on the host step only.
   if (cuda_rasterizer && cuda_decoder && !options_.adam.compact_moments &&
       !options_.adam.half_moments && !options_.decoder_jitter.enabled() &&

@@ -4,7 +4,7 @@
 # scripts/k8s/, or by hand. Each step is cached (a rerun resumes after the last finished step), the scene
 # holds a lock while it runs, and OUT/scenes/NAME/status.json (written atomically) ends as done, failed
 # (with the failing step's one-line error) or interrupted (a signal: time limit, preemption, scancel).
-#   run_scene.sh --scenes TABLE --output_path OUT [--index K] [--device cpu|cuda] [--num_threads N] [--bin PATH]
+#   run_scene.sh --scenes TABLE --output_path OUT [--index K] [--device cpu|cuda|auto] [--num_threads N] [--bin PATH]
 #                [--checkpoint_every N]   (training and embedding checkpoints, default 1000 iterations: a
 #                                          preempted step resumes from its last one)
 # K defaults to $SLURM_ARRAY_TASK_ID, then $JOB_COMPLETION_INDEX (Kubernetes); N to $SLURM_CPUS_PER_TASK

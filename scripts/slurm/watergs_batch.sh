@@ -32,7 +32,7 @@ Scene defaults:
                           further options of watergs train / embed / eval
 
 Run:
-  --device cpu|cuda       watergs's --device (cuda asks Slurm for a GPU per scene; default cpu)
+  --device cpu|cuda|auto  watergs's --device (cuda asks Slurm for a GPU per scene; auto takes one if --gpus asks; default cpu)
   --bin PATH              watergs binary, visible from the compute nodes (default build/plugin/watergs)
   --checkpoint_every N    training and embedding checkpoints every N iterations (default 1000): a
                           signalled (preempted, timed-out, scancelled) step resumes from its last one
@@ -85,7 +85,7 @@ while [ $# -gt 0 ]; do
 done
 [ -n "$manifest" ] || die "--manifest is required (see --help)"
 [ -n "$out" ] || die "--output_path is required (see --help)"
-[[ "$device" =~ ^(cpu|cuda)$ ]] || die "--device '$device' is not cpu or cuda"
+[[ "$device" =~ ^(cpu|cuda|auto)$ ]] || die "--device '$device' is not cpu, cuda or auto"
 [[ "$checkpoint_every" =~ ^[0-9]+$ ]] || die "--checkpoint_every '$checkpoint_every' is not a number of iterations"
 slurm_check_options "$device"
 command -v "$python" >/dev/null || die "$python not found (python3 runs the bookkeeping)"

@@ -157,6 +157,45 @@ TEST(OptionParser, DeviceDefaultsToCpuAndAutoFollowsAvailability) {
             CudaAvailable() ? Device::kCuda : Device::kCpu);
 }
 
+// --device auto on a machine without a usable GPU runs on the CPU and says
+// so (with why) on one line, once however often the device is resolved.
+TEST(OptionParser, AutoSaysOnceThatItFallsBackToTheCpu) {
+  std::string why;
+  const bool cuda = CudaAvailable(&why);
+  std::ostringstream note;
+  bool noted = false;
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(ResolveDevice("auto", &note, &noted),
+              cuda ? Device::kCuda : Device::kCpu);
+  }
+  if (cuda) {
+    EXPECT_EQ(note.str(), "");
+    return;
+  }
+  EXPECT_EQ(note.str(),
+            "watergs: --device auto: running on the CPU (" + why + ")\n");
+  // cpu and cuda never write the note.
+  std::ostringstream quiet;
+  bool quiet_noted = false;
+  EXPECT_EQ(ResolveDevice("cpu", &quiet, &quiet_noted), Device::kCpu);
+  EXPECT_THROW(ResolveDevice("cuda", &quiet, &quiet_noted), Error);
+  EXPECT_EQ(quiet.str(), "");
+}
+
+// The help says what --device takes, that the default is cpu for now, and
+// when auto becomes it.
+TEST(OptionParser, HelpStatesTheDeviceDefaultAndWhenAutoBecomesIt) {
+  OptionParser parser("demo", "test");
+  Args args({"demo", "-h"});
+  ::testing::internal::CaptureStdout();
+  EXPECT_FALSE(parser.Parse(args.argc(), args.argv()));
+  const std::string help = ::testing::internal::GetCapturedStdout();
+  for (const char* text : {"cpu, cuda or auto", "(=cpu)", "auto becomes the",
+                           "default once", "parity tests"}) {
+    EXPECT_NE(help.find(text), std::string::npos) << text << "\n" << help;
+  }
+}
+
 TEST(OptionParser, CudaWithoutCudaAndUnknownDevicesAreOneLineErrors) {
   std::string why;
   if (CudaAvailable(&why)) {

@@ -36,7 +36,7 @@ int Stride(int array, int rest) {
 }  // namespace
 
 CudaEmbeddingStep::CudaEmbeddingStep(CudaRasterizer* rasterizer,
-                                     CudaDecoder* decoder,
+                                     DevicePatchDecoder* decoder,
                                      const AdamOptions& adam_options,
                                      double scene_extent, double beta,
                                      double gamma, std::vector<float> targets,

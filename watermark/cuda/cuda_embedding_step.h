@@ -7,7 +7,8 @@
 // iteration only the ground-truth crop goes up and the L logits and three
 // loss figures come down; the Gaussians' origin list comes down at a
 // densification. Embedder uses it when its rasterizer is a CudaRasterizer,
-// its decoder a CudaDecoder and its moments float32.
+// its decoder a CUDA one (DevicePatchDecoder: CudaDecoder or
+// CudaFeatureDecoder) and its moments float32.
 //
 // Same results as the host step up to float rounding, except: the noise
 // and dropout layers draw their samples on the device (cuda_distortion.h:
@@ -35,7 +36,7 @@
 #include "gaussian/image.h"
 #include "gaussian/loss.h"
 #include "gaussian/rasterizer.h"
-#include "watermark/cuda/cuda_hidden.h"
+#include "watermark/cuda/device_patch_decoder.h"
 #include "watermark/device_embedding_step.h"
 
 namespace watergs {
@@ -44,7 +45,7 @@ class CudaEmbeddingStep : public DeviceEmbeddingStep {
  public:
   // `rasterizer`, `decoder`, `host_model` and `host_adam` (the embedder's)
   // must outlive this; targets holds the message's 0/1 bits.
-  CudaEmbeddingStep(CudaRasterizer* rasterizer, CudaDecoder* decoder,
+  CudaEmbeddingStep(CudaRasterizer* rasterizer, DevicePatchDecoder* decoder,
                     const AdamOptions& adam_options, double scene_extent,
                     double beta, double gamma, std::vector<float> targets,
                     GaussianModel* host_model, Adam* host_adam);
@@ -78,7 +79,7 @@ class CudaEmbeddingStep : public DeviceEmbeddingStep {
   CudaDistortionLayer& DeviceLayer(const DistortionLayer& layer);
 
   CudaRasterizer* rasterizer_;
-  CudaDecoder* decoder_;
+  DevicePatchDecoder* decoder_;
   CudaModelMirror mirror_;
   CudaTrainingLoss loss_;
   double gamma_;

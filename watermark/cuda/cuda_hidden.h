@@ -14,6 +14,7 @@
 #include "gaussian/rasterizer.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/cuda/cuda_nn.h"
+#include "watermark/cuda/device_patch_decoder.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {
@@ -110,9 +111,9 @@ struct CudaHiddenModel {
   std::unique_ptr<CudaHiddenDecoder> decoder;
 };
 
-// The frozen universal decoder (Decoder's twin) on the GPU: the CUDA
-// implementation of BitDecoder.
-class CudaDecoder : public BitDecoder {
+// The frozen HiDDeN decoder (Decoder's twin) on the GPU: a BitDecoder the
+// device-resident embedding step reads in place (DevicePatchDecoder).
+class CudaDecoder : public DevicePatchDecoder {
  public:
   // Loads the decoder of a weights file as Decoder::Load does (same
   // checks, same errors). allow_tf32: see CudaNnContext (faster, ~1e-3
@@ -150,10 +151,10 @@ class CudaDecoder : public BitDecoder {
   // added into the same rect of `dimage_hwc` (same layout): no crop copy,
   // no separate gradient image.
   std::vector<float> LogitsDevicePatch(const float* image_hwc, int pitch,
-                                       const PixelRect& rect);
+                                       const PixelRect& rect) override;
   void AddInputGradientDevicePatch(const std::vector<float>& dlogits,
                                    float* dimage_hwc, int pitch,
-                                   const PixelRect& rect);
+                                   const PixelRect& rect) override;
 
  private:
   // Network input from a width x height device HWC patch with rows `pitch`

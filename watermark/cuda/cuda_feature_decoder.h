@@ -1,0 +1,81 @@
+// The random-feature decoder (feature_decoder.h, the shipped default) on the
+// GPU, loaded from the same weights file:
+//   D(x) = A . GAP(ReLU(conv_k(avgpool_p(2x - 1)))) + b
+// with the average pooling fused into the image -> network-input kernel, the
+// k x k convolution through cuDNN, ReLU and global pooling fused into one
+// kernel (and its backward into one), and the projection through cuBLAS.
+// Logits and input gradient for host images (BitDecoder) and in place on a
+// patch of a device image (DevicePatchDecoder, for the device-resident
+// embedding step). Parity with the CPU decoder:
+// tests/watermark/cuda_feature_decoder_test.cc.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gaussian/cuda/device_buffer.h"
+#include "watermark/cuda/cuda_nn.h"
+#include "watermark/cuda/device_patch_decoder.h"
+#include "watermark/feature_decoder.h"
+
+namespace watergs {
+
+class CudaFeatureDecoder : public DevicePatchDecoder {
+ public:
+  // Loads a weights file with FeatureNetFromFile's checks and errors.
+  // allow_tf32: see CudaNnContext (parity tests and LoadBitDecoder: false).
+  static std::unique_ptr<CudaFeatureDecoder> Load(const std::string& path,
+                                                  int expected_bits = 0,
+                                                  bool allow_tf32 = false);
+  // Copies the weights of `net` (which may then go away).
+  explicit CudaFeatureDecoder(FeatureNet& net, bool allow_tf32 = false);
+  ~CudaFeatureDecoder() override;
+  CudaFeatureDecoder(const CudaFeatureDecoder&) = delete;
+  CudaFeatureDecoder& operator=(const CudaFeatureDecoder&) = delete;
+
+  int NumBits() const override { return config_.num_bits; }
+  // image (at least pool x pool pixels) -> L logits.
+  std::vector<float> Logits(const ImageRGB& image) override;
+  // Re-runs the forward pass only when `image` differs from the last one.
+  void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
+                     ImageRGB* dimage) override;
+  std::vector<float> LogitsDevicePatch(const float* image_hwc, int pitch,
+                                       const PixelRect& rect) override;
+  void AddInputGradientDevicePatch(const std::vector<float>& dlogits,
+                                   float* dimage_hwc, int pitch,
+                                   const PixelRect& rect) override;
+
+ private:
+  // Pooled network input from a width x height device HWC patch with rows
+  // `pitch` pixels apart, then the forward pass into logits_.
+  void ForwardDevice(const float* image_hwc, int width, int height, int pitch);
+  // Backward of the last forward pass into dimage_hwc (the same patch
+  // layout), overwriting or adding.
+  void BackwardDevice(const std::vector<float>& dlogits, float* dimage_hwc,
+                      int pitch, bool accumulate);
+  // Runs the forward pass unless `image` is the cached input.
+  void ForwardIfNeeded(const ImageRGB& image);
+
+  FeatureDecoderConfig config_;
+  // The handles (declared before the layers that point into them).
+  std::unique_ptr<CudaNnContext> context_;
+  std::unique_ptr<CudaConv2d> conv_;
+  std::unique_ptr<CudaLinear> linear_;
+  // Uploaded host image and its gradient (HWC).
+  DeviceBuffer<float> image_, dimage_;
+  // Activations of the last forward pass and gradient scratch.
+  DeviceTensor pooled_, conv_out_, features_, logits_dev_, dlogits_, dfeatures_,
+      dconv_, dpooled_;
+  // Size of the last forward pass's patch.
+  int width_ = 0, height_ = 0;
+  // The host image of the last forward pass and its logits.
+  std::vector<float> cached_pixels_, logits_;
+  int cached_width_ = 0, cached_height_ = 0;
+  // Whether the activations are of the cached host image, or of a
+  // LogitsDevicePatch call (and its rect).
+  bool has_forward_ = false, patch_forward_ = false;
+  PixelRect patch_;
+};
+
+}  // namespace watergs
