@@ -6,11 +6,11 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <nanoflann.hpp>
 #include <string>
 #include <utility>
 
 #include "gaussian/error.h"
+#include "gaussian/point_kdtree.h"
 
 namespace watergs {
 namespace {
@@ -57,28 +57,15 @@ double ShareOfFirst(double log_a, double log_b) {
   return e / (1.0 + e);
 }
 
-struct MeansAdaptor {
-  const std::vector<float>& xyz;
-  size_t kdtree_get_point_count() const { return xyz.size() / 3; }
-  float kdtree_get_pt(size_t i, size_t dim) const { return xyz[3 * i + dim]; }
-  template <class BBox>
-  bool kdtree_get_bbox(BBox&) const {
-    return false;
-  }
-};
-
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<
-    nanoflann::L2_Simple_Adaptor<float, MeansAdaptor>, MeansAdaptor, 3,
-    uint32_t>;
-
 // Nearest other Gaussian of each (itself if alone), by the means.
 std::vector<std::pair<float, uint32_t>> NearestNeighbours(
     const GaussianModel& m) {
   const size_t n = m.size();
   std::vector<std::pair<float, uint32_t>> nearest(n, {INFINITY, 0});
   if (n < 2) return nearest;
-  const MeansAdaptor cloud{m.means};
-  const KdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  const PointCloudAdaptor cloud{m.means};
+  const PointKdTree tree(3, cloud,
+                         nanoflann::KDTreeSingleIndexAdaptorParams(10));
 #pragma omp parallel for schedule(static)
   for (int64_t i = 0; i < int64_t(n); ++i) {
     uint32_t index[2];

@@ -4,10 +4,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <nanoflann.hpp>
 #include <string>
 
 #include "gaussian/error.h"
+#include "gaussian/point_kdtree.h"
 
 namespace watergs {
 namespace {
@@ -19,21 +19,6 @@ constexpr float kLonePointSquaredDistance = 1.f;
 // Initial opacity (before the sigmoid) in Inria's initialisation.
 constexpr float kInitialOpacity = 0.1f;
 
-// nanoflann's view of an N x 3 float array.
-struct PointCloudAdaptor {
-  const std::vector<float>& xyz;
-  size_t kdtree_get_point_count() const { return xyz.size() / 3; }
-  float kdtree_get_pt(size_t i, size_t dim) const { return xyz[3 * i + dim]; }
-  template <class BBox>
-  bool kdtree_get_bbox(BBox&) const {
-    return false;
-  }
-};
-
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<
-    nanoflann::L2_Simple_Adaptor<float, PointCloudAdaptor>, PointCloudAdaptor,
-    3, uint32_t>;
-
 }  // namespace
 
 std::vector<float> MeanSquaredNeighbourDistances(const std::vector<float>& xyz,
@@ -43,7 +28,8 @@ std::vector<float> MeanSquaredNeighbourDistances(const std::vector<float>& xyz,
   if (n < 2 || k < 1) return result;
   const size_t neighbours = std::min<size_t>(k, n - 1);
   const PointCloudAdaptor cloud{xyz};
-  const KdTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  const PointKdTree tree(3, cloud,
+                         nanoflann::KDTreeSingleIndexAdaptorParams(10));
 #pragma omp parallel
   {
     // One more than wanted: the query point finds itself (or a duplicate).

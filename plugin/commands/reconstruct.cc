@@ -1,6 +1,7 @@
 // `watergs reconstruct`: a folder of photos -> a COLMAP workspace that
 // `train` reads, with COLMAP's binary (plugin/colmap_workflow.h).
 #include <cstdio>
+#include <string>
 
 #include "gaussian/error.h"
 #include "plugin/colmap_workflow.h"
@@ -28,8 +29,8 @@ int RunReconstruct(int argc, char** argv) {
              "SIFT features an image (0: 2,048 on the CPU, 8,192 with GPU "
              "SIFT)");
   parser.Add("matcher", &o.matcher,
-             "auto (exhaustive up to 41 photos, else sequential), "
-             "exhaustive or sequential");
+             "auto (exhaustive up to " + std::to_string(kMaxExhaustivePhotos) +
+                 " photos, else sequential), exhaustive or sequential");
   parser.Add("num_threads", &o.num_threads, "Threads (0 = all cores)");
   parser.Add("min_registered", &o.min_registered_fraction,
              "Fewest photos the model must register, as a fraction");

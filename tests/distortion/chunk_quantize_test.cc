@@ -13,23 +13,18 @@
 #include "distortion/file_attacks.h"
 #include "gaussian/compressed_ply_io.h"
 #include "gaussian/error.h"
+#include "tests/common/random_model.h"
 
 namespace watergs {
 namespace {
 
 GaussianModel Scene(size_t n, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  GaussianModel m;
-  m.sh_degree = 1;
-  m.Resize(n);
-  for (float& v : m.means) v = 5.f * u(rng);
-  for (float& v : m.log_scales) v = -3.f + u(rng);
-  for (float& v : m.quats) v = u(rng);
-  for (float& v : m.opacity_logits) v = 4.f * u(rng);
-  for (float& v : m.sh_dc) v = u(rng);
-  for (float& v : m.sh_rest) v = 0.3f * u(rng);
-  return m;
+  RandomModelRanges ranges;
+  ranges.means = 5;
+  ranges.log_scale_spread = 1;
+  ranges.opacity = 4;
+  ranges.sh_rest = 0.3f;
+  return RandomModel(n, 1, seed, ranges);
 }
 
 // Checks |after - before| <= step / 2 for each column of `stride` floats over

@@ -14,6 +14,7 @@
 #include "gaussian/rasterizer.h"
 #include "gaussian/sh.h"
 #include "tests/common/look_at.h"
+#include "tests/common/random_model.h"
 
 namespace watergs {
 namespace {
@@ -21,18 +22,9 @@ namespace {
 // n random Gaussians in [-1, 1]^3 with degree-`sh_degree` colour, small
 // enough and opaque enough that renders show every attribute.
 GaussianModel RandomScene(size_t n, int sh_degree, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  GaussianModel m;
-  m.sh_degree = sh_degree;
-  m.Resize(n);
-  for (float& v : m.means) v = u(rng);
-  for (float& v : m.log_scales) v = -3.f + 0.5f * u(rng);
-  for (float& v : m.quats) v = u(rng);
-  for (float& v : m.opacity_logits) v = 3.f * u(rng);
-  for (float& v : m.sh_dc) v = u(rng);
-  for (float& v : m.sh_rest) v = 0.4f * u(rng);
-  return m;
+  RandomModelRanges ranges;
+  ranges.sh_rest = 0.4f;
+  return RandomModel(n, sh_degree, seed, ranges);
 }
 
 ImageRGB Render(const GaussianModel& model, const RenderCamera& camera) {

@@ -12,24 +12,12 @@
 #include "distortion/file_attacks.h"
 #include "gaussian/error.h"
 #include "tests/common/look_at.h"
+#include "tests/common/random_model.h"
 
 namespace watergs {
 namespace {
 
-GaussianModel Scene(size_t n, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  GaussianModel m;
-  m.sh_degree = 1;
-  m.Resize(n);
-  for (float& v : m.means) v = u(rng);
-  for (float& v : m.log_scales) v = -3.f + 0.5f * u(rng);
-  for (float& v : m.quats) v = u(rng);
-  for (float& v : m.opacity_logits) v = 3.f * u(rng);
-  for (float& v : m.sh_dc) v = u(rng);
-  for (float& v : m.sh_rest) v = 0.2f * u(rng);
-  return m;
-}
+GaussianModel Scene(size_t n, uint64_t seed) { return RandomModel(n, 1, seed); }
 
 std::vector<RenderCamera> Cameras() {
   return {LookAtOrigin(Eigen::Vector3d(3.0, -2.0, 1.5), 64, 48),
