@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <regex>
+#include <utility>
 
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
@@ -336,15 +337,24 @@ std::string OutlierViewWarning(const std::string& train_report_json) {
   if (j.is_discarded() || !j.contains("views") || !j["views"].is_array()) {
     return "";
   }
-  double best = -1e300;
-  for (const auto& v : j["views"]) best = std::max(best, v.value("psnr", 0.0));
-  std::string low;
+  // Views with a PSNR (a NaN is written as null) and their names.
+  std::vector<std::pair<std::string, double>> views;
   for (const auto& v : j["views"]) {
-    const double psnr = v.value("psnr", 0.0);
+    if (!v.is_object() || !v.contains("psnr") || !v["psnr"].is_number()) {
+      continue;
+    }
+    const bool named = v.contains("name") && v["name"].is_string();
+    views.emplace_back(named ? v["name"].get<std::string>() : "?",
+                       v["psnr"].get<double>());
+  }
+  double best = -1e300;
+  for (const auto& [name, psnr] : views) best = std::max(best, psnr);
+  std::string low;
+  for (const auto& [name, psnr] : views) {
     if (psnr > best - kOutlierViewDb) continue;
     char item[160];
     std::snprintf(item, sizeof(item), "%s%s %.1f dB", low.empty() ? "" : ", ",
-                  v.value("name", std::string("?")).c_str(), psnr);
+                  name.c_str(), psnr);
     low += item;
   }
   if (low.empty()) return "";

@@ -72,6 +72,11 @@ TEST(OutlierViewWarning, NamesTheViewsFarBelowTheBestOnly) {
   EXPECT_EQ(OutlierViewWarning(placed), "");
   EXPECT_EQ(OutlierViewWarning("not json"), "");
   EXPECT_EQ(OutlierViewWarning(R"({"psnr": 20})"), "");
+  // A view without a number (NaN is written as null) is left out, not fatal.
+  const std::string odd = OutlierViewWarning(R"({"views": [7, {"psnr": null},
+      {"name": "a.jpg", "psnr": 25.0}, {"name": 3, "psnr": 12.0}]})");
+  EXPECT_NE(odd.find("? 12.0 dB."), std::string::npos) << odd;
+  EXPECT_EQ(odd.find("a.jpg"), std::string::npos) << odd;
 }
 
 }  // namespace
