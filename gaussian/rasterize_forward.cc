@@ -136,8 +136,8 @@ void AccumulateSplatWeights(const std::vector<Splat>& splats,
   const int num_tiles = bins.NumTiles();
 #pragma omp parallel
   {
-    // Per-thread sums (a splat spans several tiles), added up in order of
-    // thread below; double keeps a million pixels' sum exact to ~1e-10.
+    // Per-thread sums (a splat spans several tiles), added up below in the
+    // order threads finish; in double that order moves a sum by ~1e-16 of it.
     std::vector<double> local(splats.size(), 0.0);
 #pragma omp for schedule(dynamic, 1)
     for (int k = 0; k < num_tiles; ++k) {

@@ -34,10 +34,17 @@ PoseComparison ComparePoses(const Reconstruction& model,
     from.col(k) = pairs[k].first->ProjectionCenter();
     to.col(k) = pairs[k].second->ProjectionCenter();
   }
-  const Eigen::Vector3d to_mean = to.rowwise().mean();
-  const double spread =
-      std::sqrt((to.colwise() - to_mean).squaredNorm() / double(n));
+  // RMS distance of the centres from their mean.
+  const auto spread_of = [n](const Eigen::Matrix3Xd& centres) {
+    const Eigen::Vector3d mean = centres.rowwise().mean();
+    return std::sqrt((centres.colwise() - mean).squaredNorm() / double(n));
+  };
+  const double spread = spread_of(to);
   if (!(spread > 0)) Fail("compare poses: the reference's cameras coincide");
+  // A collapsed model has no similarity to the reference: umeyama's scale
+  // would be 0 and every error NaN, which compares as "placed right".
+  if (!(spread_of(from) > 0))
+    Fail("compare poses: the model's cameras coincide");
   const Eigen::Matrix4d similarity = Eigen::umeyama(from, to, true);
   const Eigen::Matrix3d scaled_rotation = similarity.topLeftCorner<3, 3>();
   PoseComparison c;

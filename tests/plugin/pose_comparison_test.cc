@@ -103,7 +103,7 @@ TEST(ComparePoses, AGroupJoinedInAWrongPoseIsFound) {
   EXPECT_NE(FormatPoseComparison(c).find(c.worst_image), std::string::npos);
 }
 
-TEST(ComparePoses, RefusesFewerThanThreeCommonImages) {
+TEST(ComparePoses, RefusesFewerThanThreeCommonImagesAndACollapsedModel) {
   const Reconstruction reference = TwoRings();
   Reconstruction two;
   two.AddCamera(reference.Cameras().at(1));
@@ -112,6 +112,10 @@ TEST(ComparePoses, RefusesFewerThanThreeCommonImages) {
     two.RegisterImage(id);
   }
   EXPECT_THROW(ComparePoses(two, reference), Error);
+  // Every camera of the model at one point: refused, not read as placed right.
+  const Reconstruction collapsed =
+      Moved(reference, 0, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  EXPECT_THROW(ComparePoses(collapsed, reference), Error);
 }
 
 }  // namespace
