@@ -17,6 +17,7 @@
 #include "gaussian/error.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/sh.h"
+#include "gaussian/sog_io.h"
 #include "gaussian/splat_io.h"
 #include "gaussian/spz_io.h"
 #include "gaussian/text_util.h"
@@ -294,6 +295,10 @@ void ApplyCodec(GaussianFormat codec, int spz_version, const GaussianModel& in,
         *out = DecodeSplat("splat codec", data(), bytes.size());
       }
       break;
+    case GaussianFormat::kSog:
+      bytes = EncodeSog(in, {}, source);
+      *out = DecodeSog("sog codec", data(), bytes.size());
+      break;
     case GaussianFormat::kPly:
       *out = in;
       break;
@@ -383,16 +388,17 @@ ModelAttackSpec ParseModelAttack(const std::string& text) {
       }
       spec.spz_version = args == "2" ? 2 : 3;
     }
-  } else if (name == "compressed_ply" || name == "splat") {
+  } else if (name == "compressed_ply" || name == "splat" || name == "sog") {
     no_args();
     spec.kind = ModelAttackKind::kCodec;
     spec.codec = name == "splat" ? GaussianFormat::kSplat
+                 : name == "sog" ? GaussianFormat::kSog
                                  : GaussianFormat::kCompressedPly;
   } else {
     Fail("--attack: unknown attack '" + Printable(text) +
          "' (identity, gn:SIGMA, dropout:P, crop:P, sh0, fp16, quant:BITS, "
          "shuffle, similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ], prune:T, "
-         "spz[:VERSION], compressed_ply, splat, prune_significance:F, "
+         "spz[:VERSION], compressed_ply, splat, sog, prune_significance:F, "
          "decimate:F, quant_chunk:BITS[:POSBITS])");
   }
   return spec;

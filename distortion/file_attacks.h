@@ -97,22 +97,22 @@ struct ModelAttackSpec {
   // kSimilarity: the scene transform.
   SimilarityTransform similarity;
   // kCodec: the file format whose real encoder and decoder are applied
-  // (kSpz, kCompressedPly or kSplat), and the SPZ version (2 or 3).
+  // (kSpz, kCompressedPly, kSplat or kSog), and the SPZ version (2 or 3).
   GaussianFormat codec = GaussianFormat::kSpz;
   int spz_version = 3;
 };
 
 // The model after a round trip through a file format's encoder and decoder
-// (in memory): spz (version 2 or 3), compressed_ply (Morton-ordered: source
-// gives each output Gaussian's input index) or splat (SH above degree 0
-// dropped, then zero-padded so the model keeps its SH degree and layout).
+// (in memory): spz (version 2 or 3), compressed_ply and sog (Morton-ordered:
+// source gives each output Gaussian's input index) or splat (SH above degree
+// 0 dropped, then zero-padded so the model keeps its SH degree and layout).
 void ApplyCodec(GaussianFormat codec, int spz_version, const GaussianModel& in,
                 GaussianModel* out, std::vector<uint32_t>* source);
 
 // Parses one attack: identity | gn:SIGMA | dropout:P | crop:P | sh0 | fp16 |
 // quant:BITS (quant = quant:8) | shuffle | similarity:DEG,TX,TY,TZ,S[,AX,AY,
 // AZ] | prune:T | spz[:VERSION] (spz = spz:3) | compressed_ply | splat |
-// prune_significance:F | decimate:F | quant_chunk:BITS[:POSBITS] (POSBITS
+// sog | prune_significance:F | decimate:F | quant_chunk:BITS[:POSBITS] (POSBITS
 // 16 by default). Throws Error naming the text.
 ModelAttackSpec ParseModelAttack(const std::string& text);
 // Comma-separated attacks; an item starting with a digit, sign or '.'

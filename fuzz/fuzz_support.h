@@ -26,6 +26,9 @@
 
 namespace watergs::fuzz {
 
+// Splits the files of an unbundled SOG in sog_fuzzer's inputs.
+inline constexpr char kSogFuzzSeparator[] = "\n--sog-file--\n";
+
 // Per-process scratch folder (tmpfs when there is one), removed at exit. The
 // name is never destroyed, so the exit handler can still use it.
 inline const std::string& ScratchDir() {

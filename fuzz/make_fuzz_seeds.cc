@@ -2,6 +2,7 @@
 // made with the project's own writers from the committed demo scene and from
 // small synthetic models, so that no binary seed needs to be committed.
 //   watergs_fuzz_seeds <out_dir>   ->  <out_dir>/<target>/<seed>
+#include <zip.h>
 #include <zlib.h>
 
 #include <cstdio>
@@ -15,6 +16,7 @@
 #include "gaussian/compressed_ply_io.h"
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
+#include "gaussian/sog_io.h"
 #include "gaussian/splat_io.h"
 #include "gaussian/spz_io.h"
 #include "plugin/camera_models.h"
@@ -54,6 +56,33 @@ void WritePlySeeds(const std::string& out) {
   WritePly(SeedPath(out, "ply", "mixed_sh1.ply"), SmallModel(2, 1, 6), mixed);
 }
 
+// A bundled SOG as sog_fuzzer's split input: meta.json, then the images in
+// the order the decoder reads them.
+std::string SplitSog(const std::string& bundle) {
+  zip_error_t error;
+  zip_error_init(&error);
+  zip_source_t* source =
+      zip_source_buffer_create(bundle.data(), bundle.size(), 0, &error);
+  zip_t* archive = zip_open_from_source(source, ZIP_RDONLY, &error);
+  if (archive == nullptr) Fail("seeds: cannot reopen a SOG");
+  std::string split;
+  for (const char* file :
+       {"meta.json", "means_l.webp", "means_u.webp", "quats.webp",
+        "scales.webp", "sh0.webp", "shN_centroids.webp", "shN_labels.webp"}) {
+    zip_file_t* member = zip_fopen(archive, file, 0);
+    if (member == nullptr) continue;  // no SH bands
+    if (!split.empty()) split += fuzz::kSogFuzzSeparator;
+    char buffer[4096];
+    zip_int64_t got = 0;
+    while ((got = zip_fread(member, buffer, sizeof buffer)) > 0) {
+      split.append(buffer, size_t(got));
+    }
+    zip_fclose(member);
+  }
+  zip_discard(archive);
+  return split;
+}
+
 // The quantised formats, from the project's own writers.
 void WriteCodecSeeds(const std::string& out) {
   for (int degree = 0; degree <= 3; ++degree) {
@@ -72,6 +101,15 @@ void WriteCodecSeeds(const std::string& out) {
                      SmallModel(300, 0, 32));
   WriteSplat(SeedPath(out, "splat", "one.splat"), SmallModel(1, 0, 33));
   WriteSplat(SeedPath(out, "splat", "five.splat"), SmallModel(5, 2, 34));
+  for (int degree : {0, 1, 3}) {
+    const GaussianModel model = SmallModel(5 + degree, degree, 40 + degree);
+    const std::string bundle = EncodeSog(model);
+    const std::string name = "sh" + std::to_string(degree);
+    AtomicWriteFile(SeedPath(out, "sog", name + ".sog"), bundle);
+    AtomicWriteFile(SeedPath(out, "sog", name + ".split"), SplitSog(bundle));
+  }
+  AtomicWriteFile(SeedPath(out, "sog", "empty.sog"),
+                  EncodeSog(SmallModel(0, 0, 44)));
 }
 
 void WriteColmapSeeds(const std::string& out) {

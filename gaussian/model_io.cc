@@ -12,6 +12,7 @@
 #include "gaussian/compressed_ply_io.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
+#include "gaussian/sog_io.h"
 #include "gaussian/splat_io.h"
 #include "gaussian/spz_io.h"
 
@@ -61,6 +62,8 @@ const char* GaussianFormatName(GaussianFormat format) {
       return "spz";
     case GaussianFormat::kSplat:
       return "splat";
+    case GaussianFormat::kSog:
+      return "sog";
   }
   return "?";
 }
@@ -76,10 +79,9 @@ GaussianFormat DetectGaussianFormat(const std::string& path) {
     return GaussianFormat::kSpz;  // DecodeSpz names what it is not
   }
   if (StartsWith(head, "PK\x03\x04")) {
-    FailAt(path,
-           "a zip archive (SOG?); watergs reads PLY, compressed PLY, .spz "
-           "and .splat");
+    return GaussianFormat::kSog;  // DecodeSog names what it is not
   }
+  if (LooksLikeSogMeta(head.data(), head.size())) return GaussianFormat::kSog;
   // .splat has no header; text of the right size must not pass for one (a
   // real record's colour and rotation bytes are rarely all printable).
   const bool text =
@@ -88,8 +90,8 @@ GaussianFormat DetectGaussianFormat(const std::string& path) {
       });
   if (text) {
     FailAt(path,
-           "a text file, not a 3DGS model (PLY, compressed PLY, .spz or "
-           ".splat)");
+           "a text file, not a 3DGS model (PLY, compressed PLY, .spz, "
+           ".splat, SOG or its meta.json)");
   }
   std::error_code ec;
   const uint64_t size = std::filesystem::file_size(path, ec);
@@ -147,6 +149,20 @@ ModelData ReadModelFile(const std::string& path,
       data.model = DecodeSplat(path, bytes.data(), bytes.size(), &replaced);
       data.format_detail = "antimatter15 .splat";
       break;
+    case GaussianFormat::kSog: {
+      SogInfo info;
+      const bool zip = bytes.size() >= 2 && bytes[0] == 'P' && bytes[1] == 'K';
+      data.model = zip ? DecodeSog(path, bytes.data(), bytes.size(), &info)
+                       : ReadSogMeta(path, &info);
+      data.format_detail =
+          std::string("PlayCanvas SOG") + (zip ? " (bundled" : " (meta.json") +
+          (info.palette_size
+               ? ", SH palette of " + std::to_string(info.palette_size)
+               : std::string(", no SH bands")) +
+          (info.generator.empty() ? "" : ", written by " + info.generator) +
+          ")";
+      break;
+    }
     case GaussianFormat::kPly:
       break;
   }
@@ -165,6 +181,7 @@ GaussianFormat OutputFormatForPath(const std::string& path) {
   if (EndsWith(path, ".compressed.ply")) return GaussianFormat::kCompressedPly;
   if (EndsWith(path, ".spz")) return GaussianFormat::kSpz;
   if (EndsWith(path, ".splat")) return GaussianFormat::kSplat;
+  if (EndsWith(path, ".sog")) return GaussianFormat::kSog;
   return GaussianFormat::kPly;
 }
 
@@ -179,6 +196,8 @@ void WriteModelFile(const std::string& path, const GaussianModel& model,
       return WriteSpz(path, model);
     case GaussianFormat::kSplat:
       return WriteSplat(path, model);
+    case GaussianFormat::kSog:
+      return WriteSog(path, model);
   }
 }
 

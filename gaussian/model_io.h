@@ -3,11 +3,13 @@
 //   "ply\n" header without element chunk  -> Inria-style PLY (ply_io.h)
 //   "ply\n" header with element chunk     -> PlayCanvas compressed PLY
 //   gzip (1f 8b) holding "NGSP"           -> Niantic .spz, versions 2 and 3
+//   "NGSP" (uncompressed)                 -> .spz version 4
+//   zip (PK 03 04)                        -> PlayCanvas SOG, bundled
+//   JSON naming "means" and "quats"       -> SOG meta.json, images beside it
 //   anything else, a multiple of 32 bytes -> antimatter15 .splat
-// Uncompressed NGSP (SPZ version 4), zip archives (SOG) and gzip of
-// something other than SPZ are refused with the reason. Writers pick the
-// format from the output path's extension (.spz, .splat, .compressed.ply;
-// anything else is a PLY).
+// Other zips, other JSON and gzip of something other than SPZ are refused
+// with the reason. Writers pick the format from the output path's extension
+// (.spz, .splat, .compressed.ply, .sog; anything else is a PLY).
 #pragma once
 
 #include <string>
@@ -17,9 +19,9 @@
 
 namespace watergs {
 
-enum class GaussianFormat { kPly, kCompressedPly, kSpz, kSplat };
+enum class GaussianFormat { kPly, kCompressedPly, kSpz, kSplat, kSog };
 
-// "ply", "compressed_ply", "spz", "splat".
+// "ply", "compressed_ply", "spz", "splat", "sog".
 const char* GaussianFormatName(GaussianFormat format);
 
 // A model as read from any format. The PlyData part is what ReadPly gives
@@ -46,7 +48,7 @@ ModelData ReadModelFile(const std::string& path,
                         const PlyReadOptions& options = {});
 
 // The format an output path asks for by its extension (case-insensitive):
-// .spz, .splat, .compressed.ply; anything else is kPly.
+// .spz, .splat, .compressed.ply, .sog; anything else is kPly.
 GaussianFormat OutputFormatForPath(const std::string& path);
 
 // Writes `model` atomically in the format OutputFormatForPath(path) names;

@@ -42,10 +42,11 @@ class GzipReader {
   GzipReader& operator=(const GzipReader&) = delete;
 
   // Appends up to `n` inflated bytes to `out`; fewer only at the end of the
-  // stream or of the input. Throws Error for corrupt data.
+  // stream or of the input. Throws Error for corrupt data. Inflates through
+  // a small buffer, so that `out` grows with the data present, not with the
+  // n a corrupt header asks for.
   size_t Read(size_t n, std::vector<uint8_t>* out) {
-    const size_t start = out->size();
-    out->resize(start + n);
+    uint8_t buffer[1 << 16];
     size_t produced = 0;
     while (produced < n && !ended_) {
       if (z_.avail_in == 0 && left_ > 0) {
@@ -55,11 +56,13 @@ class GzipReader {
         next_ += feed;
         left_ -= feed;
       }
-      const size_t want = std::min<size_t>(n - produced, UINT_MAX);
-      z_.next_out = out->data() + start + produced;
+      const size_t want = std::min<size_t>(n - produced, sizeof buffer);
+      z_.next_out = buffer;
       z_.avail_out = static_cast<uInt>(want);
       const int res = inflate(&z_, Z_NO_FLUSH);
-      produced += want - z_.avail_out;
+      const size_t got = want - z_.avail_out;
+      out->insert(out->end(), buffer, buffer + got);
+      produced += got;
       if (res == Z_STREAM_END) {
         ended_ = true;
       } else if (res == Z_BUF_ERROR || (res == Z_OK && z_.avail_in == 0 &&
@@ -70,7 +73,6 @@ class GzipReader {
                           Printable(z_.msg ? z_.msg : zError(res)) + ")");
       }
     }
-    out->resize(start + produced);
     return produced;
   }
 

@@ -1,10 +1,10 @@
 // `watergs attack`: applies the 3D distortions of the fine-tuning layers and
 // the file attacks users meet (SH truncation, quantisation, shuffling, a
 // similarity transform, opacity pruning, the real encoders and decoders of
-// .spz, compressed PLY and .splat) to a model, for robustness evaluation and
-// for users checking their files. The input may be in any format the model
+// .spz, compressed PLY, .splat and SOG) to a model, for robustness evaluation
+// and for users checking their files. The input may be in any format the model
 // loader reads; the output's format follows its extension (.spz, .splat,
-// .compressed.ply; anything else is a PLY in the input's layout, Inria's
+// .compressed.ply, .sog; anything else is a PLY in the input's layout, Inria's
 // for a non-PLY input). A similarity transform moves the scene
 // away from the workspace's cameras: the transform is printed and written to
 // <output_path>.transform.txt for `watergs extract --scene_transform`.
@@ -40,26 +40,28 @@ int RunAttack(int argc, char** argv) {
       "similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ] (whole scene rotated about the "
       "axis, default z, scaled and translated; SH rotated with it), prune:T "
       "(Gaussians with opacity < T removed), spz[:2|3], compressed_ply, "
-      "splat (a round trip through that format's encoder and decoder), "
+      "splat, sog (a round trip through that format's encoder and decoder), "
       "prune_significance:F (the fraction F of lowest LightGaussian "
       "significance removed; needs --workspace_path), decimate:F (nearest "
       "neighbours merged until F of the Gaussians are gone), "
       "quant_chunk:BITS[:POSBITS] (per chunk of 256 Morton-ordered "
       "Gaussians, min/max quantisation; positions POSBITS, default 16). The "
-      "input is any model file (PLY, compressed PLY, .spz, .splat); the "
+      "input is any model file (PLY, compressed PLY, .spz, .splat, SOG); the "
       "output is written in the format its extension names (.spz, .splat, "
+      ".sog, "
       ".compressed.ply), otherwise as a PLY in the input's layout.");
-  parser.AddRequired("input_path", &input_path,
-                     "Model to attack (PLY, compressed PLY, .spz or .splat)");
+  parser.AddRequired(
+      "input_path", &input_path,
+      "Model to attack (PLY, compressed PLY, .spz, .splat or SOG)");
   parser.AddRequired("attack", &attacks,
                      "identity | gn:SIGMA | dropout:P | crop:P | sh0 | fp16 | "
                      "quant:BITS | shuffle | similarity:DEG,TX,TY,TZ,S[,AX,AY,"
                      "AZ] | prune:T | spz[:VERSION] | compressed_ply | splat "
-                     "| prune_significance:F | decimate:F | "
+                     "| sog | prune_significance:F | decimate:F | "
                      "quant_chunk:BITS[:POSBITS] [,...]");
   parser.AddRequired("output_path", &output_path,
-                     "Attacked model to write (.spz, .splat, .compressed.ply "
-                     "or a PLY)");
+                     "Attacked model to write (.spz, .splat, .compressed.ply, "
+                     ".sog or a PLY)");
   parser.Add("seed", &seed, "Random seed");
   parser.Add("workspace_path", &workspace_options.workspace_path,
              "COLMAP workspace whose training cameras (all but every 8th "

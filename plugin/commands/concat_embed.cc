@@ -74,7 +74,7 @@ ExtractionResult Decode(Rasterizer& rasterizer, const GaussianModel& model,
 void AddOptions(OptionParser* parser, ConcatArgs* a) {
   parser->AddRequired(
       "input_path", &a->input_path,
-      "Trained 3DGS model (PLY, compressed PLY, .spz or .splat)");
+      "Trained 3DGS model (PLY, compressed PLY, .spz, .splat or SOG)");
   parser->AddRequired("workspace_path", &a->workspace.workspace_path,
                       "COLMAP workspace the model was trained on");
   parser->Add("sparse_path", &a->workspace.input_path,

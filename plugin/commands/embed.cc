@@ -233,7 +233,7 @@ int RunEmbed(int argc, char** argv) {
                       "by fine-tuning it against a frozen decoder.");
   parser.AddRequired(
       "input_path", &a.input_path,
-      "Trained 3DGS model (PLY, compressed PLY, .spz or .splat)");
+      "Trained 3DGS model (PLY, compressed PLY, .spz, .splat or SOG)");
   parser.AddRequired("workspace_path", &a.workspace.workspace_path,
                      "COLMAP workspace the model was trained on");
   parser.Add("sparse_path", &a.workspace.input_path,

@@ -99,7 +99,7 @@ int RunEval(int argc, char** argv) {
   parser.AddRequired("raw_path", &raw_path, "The raw (unwatermarked) model");
   parser.AddRequired(
       "input_path", &input_path,
-      "The watermarked model (PLY, compressed PLY, .spz or .splat)");
+      "The watermarked model (PLY, compressed PLY, .spz, .splat or SOG)");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
                      "COLMAP workspace (its images are the ground truth; "
                      "without them only the raw renders are compared)");

@@ -83,7 +83,7 @@ int RunExtract(int argc, char** argv) {
       "p = 0.01, 'inconclusive' between.");
   parser.AddRequired(
       "input_path", &input_path,
-      "3DGS model to examine (PLY, compressed PLY, .spz or .splat)");
+      "3DGS model to examine (PLY, compressed PLY, .spz, .splat or SOG)");
   parser.AddRequired("workspace_path", &workspace_options.workspace_path,
                      "COLMAP workspace whose cameras are rendered");
   parser.Add("sparse_path", &workspace_options.input_path,

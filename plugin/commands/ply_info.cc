@@ -1,7 +1,7 @@
 // `watergs ply_info`: summary of a 3DGS model file (count, SH degree, layout,
 // attribute ranges in their activated units, NaN/Inf count, bytes per
 // Gaussian). Reads every format the model loader does (PLY, compressed PLY,
-// .spz, .splat); the layout lines are a PLY's only.
+// .spz, .splat, SOG); the layout lines are a PLY's only.
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -175,8 +175,8 @@ int RunPlyInfo(int argc, char** argv) {
   watergs::OptionParser parser(
       "ply_info",
       "Prints a 3DGS model's format, Gaussian count, SH degree, layout, "
-      "attribute ranges and NaN/Inf count (PLY, compressed PLY, .spz or "
-      ".splat, told by content).");
+      "attribute ranges and NaN/Inf count (PLY, compressed PLY, .spz, "
+      ".splat or SOG, told by content).");
   parser.AddRequired("input_path", &input_path, "The model file");
   if (!parser.Parse(argc, argv)) return 0;
   watergs::PlyReadOptions options;

@@ -32,7 +32,7 @@ int RunRender(int argc, char** argv) {
                       "to PNGs and prints PSNR/SSIM against its images (when "
                       "the workspace has its image folder).");
   parser.AddRequired("input_path", &input_path,
-                     "The model (PLY, compressed PLY, .spz or .splat)");
+                     "The model (PLY, compressed PLY, .spz, .splat or SOG)");
   parser.AddRequired("workspace_path", &ws.workspace_path,
                      "COLMAP workspace (images/ and sparse/0)");
   parser.Add("sparse_path", &ws.input_path,

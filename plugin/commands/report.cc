@@ -53,7 +53,7 @@ int RunReport(int argc, char** argv) {
                      "The raw (unwatermarked) model");
   parser.AddRequired("input_path", &request.watermarked_path,
                      "The watermarked model the claim is about (PLY, "
-                     "compressed PLY, .spz or .splat)");
+                     "compressed PLY, .spz, .splat or SOG)");
   parser.AddRequired("workspace_path", &request.workspace.workspace_path,
                      "COLMAP workspace whose cameras are rendered (its "
                      "images, if any, give PSNR/SSIM against ground truth)");

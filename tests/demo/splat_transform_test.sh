@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
 # The watermark through the real web converter, PlayCanvas splat-transform (npm; needs Node >= 22):
 # a watermarked demo model (120x90, short training and embedding) is converted
-#   PLY -> compressed PLY -> PLY  and  PLY -> .spz (version 4, the converter's default) -> PLY
+#   PLY -> compressed PLY -> PLY,  PLY -> .spz (version 4, the converter's default) -> PLY,
+#   PLY -> .sog (bundled) -> PLY  and  PLY -> SOG meta.json with its images
 # by splat-transform, and `watergs extract` must say "watermark present" on every file, the
-# converter's intermediate files included (watergs reads them directly). Also checks that the
+# converter's intermediate files included (watergs reads them directly). The other way round,
+# a .sog written by `watergs attack sog` is converted to PLY by splat-transform: its decoder must
+# read our file as present too. (SOG's SH palette: -g cpu, no WebGPU here; -i 1 k-means round,
+# as the CPU takes ~13 s a round on the demo's 40k Gaussians.) Also checks that the
 # converter really rewrote the data (the files differ from the input) and kept the count.
 # The tools come from `scripts/install_deps.sh --tests` (npm group, into WATERGS_NPM_PREFIX); if
 # they are missing the test installs them the same way. Exit 77 (skip) only when the npm
@@ -60,7 +64,13 @@ st "$out/wm.ply" "$out/wm.compressed.ply"
 st "$out/wm.compressed.ply" "$out/from_cply.ply"
 st "$out/wm.ply" "$out/wm.spz"
 st "$out/wm.spz" "$out/from_spz.ply"
-for f in wm.compressed.ply from_cply.ply wm.spz from_spz.ply; do
+st -g cpu -i 1 "$out/wm.ply" "$out/wm.sog"
+st "$out/wm.sog" "$out/from_sog.ply"
+st -g cpu -i 1 "$out/wm.ply" "$out/sog_folder/meta.json"
+"$bin" attack --input_path "$out/wm.ply" --attack sog --output_path "$out/ours.sog" > "$out/attack.log" 2>&1 ||
+  { cat "$out/attack.log"; fail "watergs attack sog"; }
+st "$out/ours.sog" "$out/ours_sog.ply"
+for f in wm.compressed.ply from_cply.ply wm.spz from_spz.ply wm.sog from_sog.ply ours.sog ours_sog.ply; do
   cmp -s "$out/wm.ply" "$out/$f" && fail "$f is byte-identical to the input: no conversion happened"
 done
 head -c 4 "$out/wm.spz" | grep -q NGSP || fail "wm.spz is not an SPZ version 4 file (no NGSP magic)"
@@ -68,4 +78,9 @@ check "PLY -> compressed PLY (splat-transform)" "$out/wm.compressed.ply"
 check "PLY -> compressed PLY -> PLY (splat-transform)" "$out/from_cply.ply"
 check "PLY -> SPZ v4 (splat-transform)" "$out/wm.spz"
 check "PLY -> SPZ v4 -> PLY (splat-transform)" "$out/from_spz.ply"
+head -c 4 "$out/wm.sog" | grep -q PK || fail "wm.sog is not a ZIP (bundled SOG)"
+check "PLY -> SOG (splat-transform)" "$out/wm.sog"
+check "PLY -> SOG -> PLY (splat-transform)" "$out/from_sog.ply"
+check "PLY -> SOG meta.json + images (splat-transform)" "$out/sog_folder/meta.json"
+check "watergs SOG -> PLY (splat-transform)" "$out/ours_sog.ply"
 echo "splat_transform_test: passed"

@@ -17,6 +17,7 @@
 #include "gaussian/compressed_ply_io.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
+#include "gaussian/sog_io.h"
 #include "gaussian/splat_io.h"
 #include "gaussian/spz_io.h"
 
@@ -72,10 +73,13 @@ TEST(ModelIo, DetectsFormatsByContentNotExtension) {
   AtomicWriteFile(compressed, EncodeCompressedPly(model));
   const std::string splat = TempPath("is_splat.compressed.ply");
   AtomicWriteFile(splat, EncodeSplat(model));
+  const std::string sog = TempPath("is_sog.ply");
+  AtomicWriteFile(sog, EncodeSog(model));
   const Case cases[] = {{ply, GaussianFormat::kPly, 1},
                         {spz, GaussianFormat::kSpz, 1},
                         {compressed, GaussianFormat::kCompressedPly, 1},
-                        {splat, GaussianFormat::kSplat, 0}};
+                        {splat, GaussianFormat::kSplat, 0},
+                        {sog, GaussianFormat::kSog, 1}};
   for (const Case& c : cases) {
     EXPECT_EQ(DetectGaussianFormat(c.name), c.format) << c.name;
     const ModelData data = ReadModelFile(c.name);
@@ -89,11 +93,14 @@ TEST(ModelIo, DetectsFormatsByContentNotExtension) {
   }
   EXPECT_EQ(ReadModelFile(spz).format_detail,
             "SPZ version 3 (12 fractional bits)");
+  EXPECT_EQ(ReadModelFile(sog).format_detail,
+            "PlayCanvas SOG (bundled, SH palette of 256, written by watergs)");
 }
 
 TEST(ModelIo, WritesTheFormatTheExtensionNames) {
   EXPECT_EQ(OutputFormatForPath("a/b.SPZ"), GaussianFormat::kSpz);
   EXPECT_EQ(OutputFormatForPath("b.splat"), GaussianFormat::kSplat);
+  EXPECT_EQ(OutputFormatForPath("b.sog"), GaussianFormat::kSog);
   EXPECT_EQ(OutputFormatForPath("b.Compressed.PLY"),
             GaussianFormat::kCompressedPly);
   EXPECT_EQ(OutputFormatForPath("b.ply"), GaussianFormat::kPly);
@@ -101,7 +108,7 @@ TEST(ModelIo, WritesTheFormatTheExtensionNames) {
   const GaussianModel model = RandomModel(20, 2, 4);
   const PlyLayout layout = InriaPlyLayout(2, model.size());
   for (const char* name :
-       {"out.spz", "out.splat", "out.compressed.ply", "out.ply"}) {
+       {"out.spz", "out.splat", "out.compressed.ply", "out.sog", "out.ply"}) {
     const std::string path = TempPath(name);
     WriteModelFile(path, model, layout);
     EXPECT_EQ(DetectGaussianFormat(path), OutputFormatForPath(path)) << name;
@@ -133,7 +140,12 @@ TEST(ModelIo, RefusesWhatNoReaderTakes) {
             std::string::npos);
   const std::string zip = TempPath("scene.sog");
   AtomicWriteFile(zip, std::string("PK\x03\x04", 4) + std::string(60, 'x'));
-  EXPECT_NE(Refusal(zip).find("zip archive (SOG?)"), std::string::npos);
+  EXPECT_NE(Refusal(zip).find("not a readable ZIP archive"), std::string::npos);
+  // JSON that is not a SOG meta.json is text like any other.
+  const std::string json = TempPath("other.json");
+  AtomicWriteFile(json, "{\"means\": 1}\n");
+  EXPECT_NE(Refusal(json).find("a text file, not a 3DGS model"),
+            std::string::npos);
   const std::string v5 = TempPath("v5.spz");
   AtomicWriteFile(v5, std::string("NGSP\x05\0\0\0", 8) + std::string(24, 'x'));
   EXPECT_NE(Refusal(v5).find("uncompressed NGSP stream of version 5"),
@@ -148,6 +160,11 @@ TEST(ModelIo, RefusesWhatNoReaderTakes) {
   const std::string cut_compressed = TempPath("cut.compressed.ply");
   AtomicWriteFile(cut_compressed, compressed.substr(0, compressed.size() - 1));
   EXPECT_NE(Refusal(cut_compressed).find("truncated"), std::string::npos);
+  const std::string sog = EncodeSog(model);
+  const std::string cut_sog = TempPath("cut.sog");
+  AtomicWriteFile(cut_sog, sog.substr(0, sog.size() - 30));
+  EXPECT_NE(Refusal(cut_sog).find("not a readable ZIP archive"),
+            std::string::npos);
   const std::string splat = EncodeSplat(model);
   const std::string cut_splat = TempPath("cut.splat");
   AtomicWriteFile(cut_splat, splat.substr(0, splat.size() - 5));

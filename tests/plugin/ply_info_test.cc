@@ -166,8 +166,8 @@ TEST(PlyInfoCli, BadFileFailsWithOneLineNamingTheFile) {
   EXPECT_NE(run.exit_code, 0);
   EXPECT_EQ(run.output,
             "error: " + path +
-                ": a text file, not a 3DGS model (PLY, compressed PLY, .spz "
-                "or .splat)\n");
+                ": a text file, not a 3DGS model (PLY, compressed PLY, .spz, "
+                ".splat, SOG or its meta.json)\n");
   const RunResult missing = RunWatergs("ply_info");
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.output.find("input_path"), std::string::npos);

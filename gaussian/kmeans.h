@@ -1,0 +1,27 @@
+// Clustering for the codebook formats (SOG): an optimal-ish 1D quantiser
+// for scalar codebooks and Lloyd's k-means over vectors for palettes.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace watergs {
+
+// Lloyd's algorithm in 1D: `values` (any order, finite) -> `codebook` of at
+// most k ascending centroids (fewer when there are fewer distinct values)
+// and labels[i], the index of the centroid nearest values[i]. Starts from
+// the k quantiles, so dense value ranges get more entries. k in [1, 65536].
+void Quantize1d(const std::vector<float>& values, int k,
+                std::vector<float>* codebook, std::vector<uint32_t>* labels);
+
+// Lloyd's k-means over n points of `dim` floats (row-major): k centroids
+// (k <= n; k = n gives every point its own) after `iterations` rounds, each
+// point's label its nearest centroid (exact, via a k-d tree). Seeds are k
+// distinct points picked with `seed`, so a run is reproducible; a centroid
+// left without points takes the point farthest from its own centroid.
+void KMeans(const std::vector<float>& points, int dim, size_t k, int iterations,
+            uint64_t seed, std::vector<float>* centroids,
+            std::vector<uint32_t>* labels);
+
+}  // namespace watergs
