@@ -76,7 +76,9 @@ TEST(SignificancePrune, KeepsTheMostSignificantAndTheOrder) {
   ASSERT_EQ(source.size(), out.size());
   std::vector<bool> kept(model.size(), false);
   for (size_t k = 0; k < source.size(); ++k) {
-    if (k > 0) EXPECT_LT(source[k - 1], source[k]);  // order kept
+    if (k > 0) {
+      EXPECT_LT(source[k - 1], source[k]);  // order kept
+    }
     kept[source[k]] = true;
     EXPECT_EQ(out.means[3 * k], model.means[3 * source[k]]);
   }

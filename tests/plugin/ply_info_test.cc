@@ -228,6 +228,17 @@ TEST(PlyInfoCli, ReadsEveryFormatAndAttackWritesByExtension) {
   const PlyData read = ReadPly(back);
   EXPECT_EQ(read.model.size(), 40u);
   EXPECT_EQ(read.layout.properties.size(), InriaPlyLayout(0).properties.size());
+  // The SPZ through the SOG codec to a .sog, read back by content.
+  const std::string sog = TempPath("codec_out.sog");
+  const RunResult sog_attack = RunWatergs("attack --input_path " + spz +
+                                          " --attack sog --output_path " + sog);
+  ASSERT_EQ(sog_attack.exit_code, 0) << sog_attack.output;
+  const RunResult sog_info = RunWatergs("ply_info --input_path " + sog);
+  EXPECT_NE(sog_info.output.find("Format:          PlayCanvas SOG (bundled, "
+                                 "SH palette of 32, written by watergs)"),
+            std::string::npos)
+      << sog_info.output;
+  EXPECT_NE(sog_info.output.find("Gaussians:       40\n"), std::string::npos);
 }
 
 }  // namespace
