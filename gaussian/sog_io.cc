@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <utility>
@@ -381,6 +382,12 @@ class SogDecoder {
   std::vector<float> Codebook(const std::string& at, const json& object) const {
     const std::vector<double> values =
         Numbers(at, object, "codebook", 0, kCodebookSize);
+    for (const double v : values) {
+      // Finite in double but not in float (1e300) would become Inf.
+      if (std::abs(v) > std::numeric_limits<float>::max()) {
+        Fail(at + ": 'codebook' holds a value beyond float");
+      }
+    }
     return std::vector<float>(values.begin(), values.end());
   }
 
