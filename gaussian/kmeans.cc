@@ -125,8 +125,9 @@ void KMeans(const std::vector<float>& points, int dim, size_t k, int iterations,
   std::iota(order.begin(), order.end(), 0u);
   std::mt19937_64 rng(seed);
   for (size_t i = 0; i < k; ++i) {
-    std::uniform_int_distribution<size_t> pick(i, n - 1);
-    std::swap(order[i], order[pick(rng)]);
+    // rng() % range, not std::uniform_int_distribution: the same seeds with
+    // every standard library (the bias is 2^-40 at most).
+    std::swap(order[i], order[i + size_t(rng() % uint64_t(n - i))]);
   }
   centroids->resize(k * d);
   for (size_t c = 0; c < k; ++c) {

@@ -54,6 +54,13 @@ Rgba DecodeWebp(const std::string& where, const std::string& bytes,
   if (!WebPGetInfo(data, bytes.size(), &image.width, &image.height)) {
     FailAt(where, "not a WebP image (or its header is truncated)");
   }
+  WebPBitstreamFeatures features;
+  if (WebPGetFeatures(data, bytes.size(), &features) == VP8_STATUS_OK &&
+      features.format == 1) {
+    FailAt(where,
+           "a lossy WebP: SOG images must be lossless (their bytes "
+           "are indices and fixed-point values)");
+  }
   const size_t pixels = size_t(image.width) * size_t(image.height);
   if (pixels < needed) {
     FailAt(where,
@@ -125,7 +132,7 @@ class ZipArchive {
 
   // The bytes of `member`; Error if it is missing, corrupt or > limit.
   std::string Read(const std::string& member, size_t limit) const {
-    const std::string where = name_ + ": " + member;
+    const std::string where = name_ + ": " + Printable(member);
     const zip_int64_t index = zip_name_locate(archive_, member.c_str(), 0);
     if (index < 0) Fail(where + ": not in the archive");
     zip_file_t* file = zip_fopen_index(archive_, zip_uint64_t(index), 0);
@@ -133,6 +140,11 @@ class ZipArchive {
       Fail(where + ": cannot open (" + Printable(zip_strerror(archive_)) + ")");
     }
     std::string bytes;
+    zip_stat_t stat;
+    if (zip_stat_index(archive_, zip_uint64_t(index), 0, &stat) == 0 &&
+        (stat.valid & ZIP_STAT_SIZE) && stat.size <= limit) {
+      bytes.reserve(size_t(stat.size));  // no doubling peak
+    }
     char buffer[1 << 16];
     zip_int64_t got = 0;
     while ((got = zip_fread(file, buffer, sizeof buffer)) > 0) {
@@ -161,15 +173,19 @@ std::string ZipStore(
   zip_error_init(&error);
   zip_source_t* out = zip_source_buffer_create(nullptr, 0, 0, &error);
   if (out == nullptr) Fail("SOG: cannot create a ZIP buffer");
-  zip_source_keep(out);
   zip_t* archive = zip_open_from_source(out, ZIP_TRUNCATE, &error);
   zip_error_fini(&error);
+  if (archive == nullptr) {
+    zip_source_free(out);
+    Fail("SOG: writing the ZIP failed: cannot open");
+  }
+  // The archive owns `out` now; one more reference keeps it past zip_close.
+  zip_source_keep(out);
   auto fail = [&](const std::string& why) {
     if (archive != nullptr) zip_discard(archive);
     zip_source_free(out);
     Fail("SOG: writing the ZIP failed: " + why);
   };
-  if (archive == nullptr) fail("cannot open");
   for (const auto& [name, bytes] : members) {
     zip_source_t* member =
         zip_source_buffer(archive, bytes.data(), bytes.size(), 0);
@@ -181,20 +197,22 @@ std::string ZipStore(
       if (member != nullptr) zip_source_free(member);
       fail(zip_strerror(archive));
     }
-    // A fixed time stamp: the same model gives the same bytes.
+    // A fixed DOS time stamp (1980-01-01 00:00, no time zone involved): the
+    // same model gives the same bytes.
     zip_set_file_compression(archive, zip_uint64_t(index), ZIP_CM_STORE, 0);
-    zip_file_set_mtime(archive, zip_uint64_t(index), 315532800, 0);
+    zip_file_set_dostime(archive, zip_uint64_t(index), 0, 0x21, 0);
   }
-  if (zip_close(archive) < 0) {
-    const std::string why = zip_strerror(archive);
-    archive = nullptr;  // zip_close failed: still ours to discard
-    fail(why);
-  }
+  if (zip_close(archive) < 0) fail(zip_strerror(archive));  // still ours
   archive = nullptr;
   std::string bytes;
   if (zip_source_open(out) < 0) fail("cannot reopen the buffer");
   zip_source_seek(out, 0, SEEK_END);
-  bytes.resize(size_t(zip_source_tell(out)));
+  const zip_int64_t size = zip_source_tell(out);
+  if (size < 0) {
+    zip_source_close(out);
+    fail("cannot size the buffer");
+  }
+  bytes.resize(size_t(size));
   zip_source_seek(out, 0, SEEK_SET);
   const zip_int64_t got = zip_source_read(out, bytes.data(), bytes.size());
   zip_source_close(out);
@@ -306,8 +324,7 @@ class SogDecoder {
       }
     }
     GaussianModel model;
-    model.sh_degree = bands;
-    model.Resize(count_);
+    model.sh_degree = bands;  // DecodeMeans sizes it once an image holds count
     DecodeMeans(where, ObjectMember(where, meta, "means"), &model);
     DecodeQuats(where, ObjectMember(where, meta, "quats"), &model);
     DecodeScales(where, ObjectMember(where, meta, "scales"), &model);
@@ -321,7 +338,7 @@ class SogDecoder {
 
  private:
   Rgba Image(const std::string& file, size_t needed) const {
-    return DecodeWebp(name_ + ": " + file, load_(file), needed);
+    return DecodeWebp(name_ + ": " + Printable(file), load_(file), needed);
   }
 
   void DecodeMeans(const std::string& where, const json& means,
@@ -332,6 +349,9 @@ class SogDecoder {
     const std::vector<std::string> files = FileNames(at, means, 2);
     const Rgba low = Image(files[0], count_);
     const Rgba high = Image(files[1], count_);
+    // Only now: a meta.json's count alone must not size the model (2^27
+    // Gaussians of degree 3 are 31 GB); images of that many pixels bound it.
+    model->Resize(count_);
     for (int axis = 0; axis < 3; ++axis) {
       // exp(88) is near float's largest: a range beyond would give Inf.
       if (std::abs(mins[axis]) > 88 || std::abs(maxs[axis]) > 88) {
@@ -361,9 +381,9 @@ class SogDecoder {
     for (size_t i = 0; i < count_; ++i) {
       const uint8_t* p = image.at(i);
       if (p[3] < 252) {
-        FailAt(name_ + ": " + file, "pixel " + std::to_string(i) + ": tag " +
-                                        std::to_string(p[3]) +
-                                        ", expected 252-255");
+        FailAt(name_ + ": " + Printable(file),
+               "pixel " + std::to_string(i) + ": tag " + std::to_string(p[3]) +
+                   ", expected 252-255");
       }
       const int largest = p[3] - 252;
       double q[4] = {0, 0, 0, 0};
@@ -435,7 +455,7 @@ class SogDecoder {
     const size_t rows = (palette + kPaletteRow - 1) / kPaletteRow;
     const Rgba centroids = Image(files[0], rows * kPaletteRow * coeffs);
     if (size_t(centroids.width) != kPaletteRow * coeffs) {
-      FailAt(name_ + ": " + files[0],
+      FailAt(name_ + ": " + Printable(files[0]),
              "width " + std::to_string(centroids.width) + ", expected " +
                  std::to_string(kPaletteRow * coeffs) + " for " +
                  std::to_string(bands) + " SH bands");
@@ -445,7 +465,7 @@ class SogDecoder {
     for (size_t i = 0; i < count_; ++i) {
       const size_t label = labels.at(i)[0] | (labels.at(i)[1] << 8);
       if (label >= palette) {
-        FailAt(name_ + ": " + files[1],
+        FailAt(name_ + ": " + Printable(files[1]),
                "Gaussian " + std::to_string(i) + " has label " +
                    std::to_string(label) + " of a " + std::to_string(palette) +
                    "-entry palette");
@@ -471,7 +491,8 @@ class SogDecoder {
 bool IsPlainFileName(const std::string& name) {
   return !name.empty() && name != "." && name != ".." &&
          name.find_first_of("/\\") == std::string::npos &&
-         name.find('\0') == std::string::npos;
+         std::none_of(name.begin(), name.end(),
+                      [](char c) { return uint8_t(c) < 0x20; });
 }
 
 }  // namespace
@@ -542,8 +563,9 @@ uint8_t TruncatedByte(double value) {
 json EncodeMeans(const GaussianModel& model, const std::vector<uint32_t>& order,
                  const SogLayout& layout, std::string* low_webp,
                  std::string* high_webp) {
+  // Clamped to the +-88 the reader accepts (float's largest is e^88.7).
   auto log_transform = [](double v) {
-    return std::copysign(std::log1p(std::abs(v)), v);
+    return std::copysign(std::min(88.0, std::log1p(std::abs(v))), v);
   };
   double mins[3] = {0, 0, 0}, maxs[3] = {0, 0, 0};
   for (int axis = 0; axis < 3; ++axis) {

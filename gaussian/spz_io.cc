@@ -266,11 +266,15 @@ std::vector<uint8_t> ReadGzipPayload(const std::string& name,
   uint64_t payload = 0;
   for (uint64_t s : StreamSizes(*h)) payload += s;
   bytes.clear();
-  // One allocation for the attributes, as large as the data can inflate to
-  // (deflate's ratio is at most 1032:1): no doubling peak for a real file,
-  // no large allocation for a header that lies.
-  bytes.reserve(
-      size_t(std::min<uint64_t>(payload, uint64_t(size) * 1032 + 64)));
+  // Deflate inflates at most 1032:1: a header asking for more than the data
+  // can give is refused before any allocation; otherwise one allocation.
+  if (payload > uint64_t(size) * 1032 + 64) {
+    FailAt(name, "truncated SPZ data: " + std::to_string(h->n) +
+                     " Gaussians need " + std::to_string(payload) +
+                     " bytes after the header, more than " +
+                     std::to_string(size) + " compressed bytes can hold");
+  }
+  bytes.reserve(size_t(payload));
   while (bytes.size() < payload) {
     const size_t step =
         size_t(std::min<uint64_t>(payload - bytes.size(), kInflateStep));

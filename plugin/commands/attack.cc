@@ -60,8 +60,8 @@ int RunAttack(int argc, char** argv) {
                      "| sog | prune_significance:F | decimate:F | "
                      "quant_chunk:BITS[:POSBITS] [,...]");
   parser.AddRequired("output_path", &output_path,
-                     "Attacked model to write (.spz, .splat, .compressed.ply, "
-                     ".sog or a PLY)");
+                     "Attacked model to write (.spz, .splat, .sog, "
+                     ".compressed.ply or a PLY)");
   parser.Add("seed", &seed, "Random seed");
   parser.Add("workspace_path", &workspace_options.workspace_path,
              "COLMAP workspace whose training cameras (all but every 8th "

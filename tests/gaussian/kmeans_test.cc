@@ -1,7 +1,8 @@
 // Tests of the codebook clustering: the 1D quantiser is exact when values
-// are few, its error stays within half a step on spread values and its
-// labels name the nearest entry; k-means recovers separated clusters, gives
-// every point its own centroid when k = n, and is reproducible.
+// are few, its error stays near a uniform quantiser's on spread values and its
+// labels name the nearest entry; k-means labels every point with its exact
+// nearest centroid, never worsens with more rounds, is reproducible, and
+// gives every point its own centroid when k = n.
 #include "gaussian/kmeans.h"
 
 #include <gtest/gtest.h>
@@ -34,40 +35,73 @@ TEST(Quantize1d, LabelsTheNearestEntryWithinHalfAStep) {
   Quantize1d(values, 256, &codebook, &labels);
   ASSERT_EQ(codebook.size(), 256u);
   EXPECT_TRUE(std::is_sorted(codebook.begin(), codebook.end()));
-  double worst = 0;
+  double worst = 0, total = 0;
   for (size_t i = 0; i < values.size(); ++i) {
     const float error = std::abs(codebook[labels[i]] - values[i]);
     for (const float c : codebook) {
       ASSERT_LE(error, std::abs(c - values[i]) + 1e-6f) << "not the nearest";
     }
     worst = std::max(worst, double(error));
+    total += error;
   }
-  EXPECT_LT(worst, 8.0 / 256);  // a uniform step is 8 / 256; half is 1/64
+  // A uniform quantiser of step 8 / 256 errs by a quarter step on average
+  // and half a step at worst; Lloyd on 20000 samples spaces its entries
+  // unevenly (cells at the ends are wider), so a little more.
+  const double step = 8.0 / 256;
+  EXPECT_LT(total / values.size(), 1.1 * step / 4);
+  EXPECT_LT(worst, 0.75 * step);
 }
 
-TEST(KMeans, RecoversSeparatedClusters) {
+double SumOfSquares(const std::vector<float>& points, int dim,
+                    const std::vector<float>& centroids,
+                    const std::vector<uint32_t>& labels) {
+  double total = 0;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    for (int j = 0; j < dim; ++j) {
+      const double d = points[i * dim + j] - centroids[labels[i] * dim + j];
+      total += d * d;
+    }
+  }
+  return total;
+}
+
+TEST(KMeans, LabelsTheNearestCentroidAndNeverWorsens) {
   std::mt19937 rng(2);
-  std::normal_distribution<float> noise(0.f, 0.01f);
-  const float centres[4][2] = {{0, 0}, {5, 0}, {0, 5}, {5, 5}};
-  std::vector<float> points;
-  for (int i = 0; i < 400; ++i) {
-    points.push_back(centres[i % 4][0] + noise(rng));
-    points.push_back(centres[i % 4][1] + noise(rng));
+  std::normal_distribution<float> noise(0.f, 1.f);
+  const int dim = 9;
+  std::vector<float> points(dim * 3000);
+  for (float& v : points) v = noise(rng);
+  double previous = HUGE_VAL;
+  for (const int rounds : {1, 2, 5, 10}) {
+    std::vector<float> centroids;
+    std::vector<uint32_t> labels;
+    KMeans(points, dim, 64, rounds, 3, &centroids, &labels);
+    // Exact nearest (the k-d tree against brute force).
+    for (size_t i = 0; i < labels.size(); i += 7) {
+      double best = HUGE_VAL;
+      for (size_t c = 0; c < 64; ++c) {
+        double d = 0;
+        for (int j = 0; j < dim; ++j) {
+          const double e = points[i * dim + j] - centroids[c * dim + j];
+          d += e * e;
+        }
+        best = std::min(best, d);
+      }
+      double mine = 0;
+      for (int j = 0; j < dim; ++j) {
+        const double e = points[i * dim + j] - centroids[labels[i] * dim + j];
+        mine += e * e;
+      }
+      ASSERT_LE(mine, best * (1 + 1e-5)) << "point " << i;
+    }
+    const double sse = SumOfSquares(points, dim, centroids, labels);
+    EXPECT_LE(sse, previous * (1 + 1e-6)) << rounds << " rounds";
+    previous = sse;
+    std::vector<float> again;
+    std::vector<uint32_t> again_labels;
+    KMeans(points, dim, 64, rounds, 3, &again, &again_labels);
+    EXPECT_EQ(again, centroids) << "not reproducible";
   }
-  std::vector<float> centroids;
-  std::vector<uint32_t> labels;
-  KMeans(points, 2, 4, 10, 3, &centroids, &labels);
-  for (int i = 0; i < 400; ++i) {
-    EXPECT_EQ(labels[i], labels[i % 4]) << "point " << i;
-    const float* c = &centroids[2 * labels[i]];
-    EXPECT_NEAR(c[0], centres[i % 4][0], 0.01);
-    EXPECT_NEAR(c[1], centres[i % 4][1], 0.01);
-  }
-  std::vector<float> again;
-  std::vector<uint32_t> again_labels;
-  KMeans(points, 2, 4, 10, 3, &again, &again_labels);
-  EXPECT_EQ(again, centroids);
-  EXPECT_EQ(again_labels, labels);
 }
 
 TEST(KMeans, OneClusterPerPointIsExact) {

@@ -157,15 +157,20 @@ TEST(SogIo, UnbundledMetaReadsAsTheBundle) {
   EXPECT_EQ(folder.model.opacity_logits, zipped.opacity_logits);
   // A meta.json must not reach outside its folder.
   json meta = json::parse(ReadFileBytes((dir / "meta.json").string()));
-  meta["quats"]["files"][0] = "../quats.webp";
-  AtomicWriteFile((dir / "meta.json").string(), meta.dump());
-  try {
-    ReadModelFile((dir / "meta.json").string());
-    ADD_FAILURE() << "a path outside the folder was read";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("only files beside meta.json"),
-              std::string::npos)
-        << e.what();
+  // Neither a path outside the folder nor a name that would break the
+  // error's line is read.
+  for (const char* name : {"../quats.webp", "quats\n.webp"}) {
+    meta["quats"]["files"][0] = name;
+    AtomicWriteFile((dir / "meta.json").string(), meta.dump());
+    try {
+      ReadModelFile((dir / "meta.json").string());
+      ADD_FAILURE() << "read " << name;
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find("only files beside meta.json"), std::string::npos)
+          << message;
+      EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    }
   }
   std::filesystem::remove_all(dir);
 }
@@ -180,6 +185,16 @@ TEST(SogIo, AlphasOfZeroAndOneReadAsFiniteLogits) {
   std::sort(logits.begin(), logits.end());
   EXPECT_EQ(logits[0], -kOpacityLogitLimit);
   EXPECT_EQ(logits[1], kOpacityLogitLimit);
+}
+
+TEST(SogIo, PositionsNearFloatsLimitEncodeAgain) {
+  GaussianModel model = RandomModel(4, 0, 12);
+  model.means[0] = 3e38f;  // log1p is 88.6, beyond the reader's +-88
+  const std::string bytes = EncodeSog(model);
+  const GaussianModel back = DecodeSog("far.sog", Bytes(bytes), bytes.size());
+  ASSERT_EQ(back.CountNonFinite(), 0u);
+  const std::string again = EncodeSog(back);
+  EXPECT_EQ(DecodeSog("again.sog", Bytes(again), again.size()).size(), 4u);
 }
 
 TEST(SogIo, EmptyModelRoundTrips) {
@@ -270,6 +285,20 @@ TEST(SogIo, RefusesMalformedMetaAndImages) {
   Files huge = good;
   huge["scales.webp"] = Webp(std::vector<uint8_t>(4 * 4000 * 40, 0), 4000, 40);
   EXPECT_NE(Refusal(huge).find("absurd size"), std::string::npos);
+  // A count no image holds is refused before the model is sized for it
+  // (2^27 - 1 Gaussians of degree 1 would be 11 GB).
+  EXPECT_NE(Refusal(with_meta([](json& m) {
+              m["count"] = (1u << 27) - 1;
+            })).find("needed"),
+            std::string::npos);
+  Files lossy = good;
+  uint8_t* out = nullptr;
+  const std::vector<uint8_t> grey(4 * 8 * 8, 128);
+  const size_t lossy_size = WebPEncodeRGBA(grey.data(), 8, 8, 32, 90.f, &out);
+  lossy["sh0.webp"] =
+      std::string(reinterpret_cast<const char*>(out), lossy_size);
+  WebPFree(out);
+  EXPECT_NE(Refusal(lossy).find("sh0.webp: a lossy WebP"), std::string::npos);
   Files bad_tag = good;
   bad_tag["quats.webp"] = Webp(std::vector<uint8_t>(4 * 8 * 8, 7), 8, 8);
   EXPECT_NE(Refusal(bad_tag).find("tag 7, expected 252-255"),
