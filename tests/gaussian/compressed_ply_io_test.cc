@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "gaussian/error.h"
+#include "tests/common/refusal.h"
 
 namespace watergs {
 namespace {
@@ -37,17 +38,9 @@ GaussianModel Decode(const std::string& bytes) {
                              bytes.size());
 }
 
+// The one-line error for `bytes` (tests/common/refusal.h).
 std::string Refusal(const std::string& bytes) {
-  try {
-    Decode(bytes);
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind("test.compressed.ply: ", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message;
-  }
-  ADD_FAILURE() << "accepted";
-  return "";
+  return testing::Refusal("test.compressed.ply", [&] { Decode(bytes); });
 }
 
 std::string Replace(std::string text, const std::string& from,

@@ -23,6 +23,7 @@
 #include "gaussian/file_util.h"
 #include "gaussian/model_io.h"
 #include "tests/common/random_model.h"
+#include "tests/common/refusal.h"
 
 namespace watergs {
 namespace {
@@ -59,28 +60,19 @@ Files Unzip(const std::string& bundle) {
 }
 
 GaussianModel DecodeFiles(const Files& files) {
-  return DecodeSogFiles("test.sog", files.at("meta.json"),
-                        [&](const std::string& name) {
-                          const auto it = files.find(name);
-                          if (it == files.end()) {
-                            FailAt("test.sog: " + name, "file not found");
-                          }
-                          return it->second;
-                        });
+  return DecodeSogFiles(
+      "test.sog", files.at("meta.json"), [&](const std::string& name) {
+        const auto it = files.find(name);
+        if (it == files.end()) {
+          FailAt("test.sog: " + Printable(name), "file not found");
+        }
+        return it->second;
+      });
 }
 
-// The refusal of `files`; checks it is one line naming the file.
+// The one-line error for `files` (tests/common/refusal.h).
 std::string Refusal(const Files& files) {
-  try {
-    DecodeFiles(files);
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind("test.sog: ", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message;
-  }
-  ADD_FAILURE() << "accepted";
-  return "";
+  return testing::Refusal("test.sog", [&] { DecodeFiles(files); });
 }
 
 std::string Webp(const std::vector<uint8_t>& rgba, int width, int height) {

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "gaussian/error.h"
+#include "tests/common/refusal.h"
 
 namespace watergs {
 namespace {
@@ -41,17 +42,9 @@ GaussianModel Decode(const std::string& bytes, size_t* replaced = nullptr) {
                      bytes.size(), replaced);
 }
 
+// The one-line error for `bytes` (tests/common/refusal.h).
 std::string Refusal(const std::string& bytes) {
-  try {
-    Decode(bytes);
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind("test.splat: ", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message;
-  }
-  ADD_FAILURE() << "accepted";
-  return "";
+  return testing::Refusal("test.splat", [&] { Decode(bytes); });
 }
 
 double Sigmoid(double x) { return 1 / (1 + std::exp(-x)); }

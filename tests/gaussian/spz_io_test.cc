@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "gaussian/error.h"
+#include "tests/common/refusal.h"
 
 namespace watergs {
 namespace {
@@ -58,19 +59,9 @@ GaussianModel Decode(const std::string& bytes, SpzInfo* info = nullptr) {
                    bytes.size(), info);
 }
 
-// The error DecodeSpz throws for `bytes`, checked to be one line naming the
-// file.
+// The one-line error for `bytes` (tests/common/refusal.h).
 std::string Refusal(const std::string& bytes) {
-  try {
-    Decode(bytes);
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind("test.spz: ", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message;
-  }
-  ADD_FAILURE() << "accepted";
-  return "";
+  return testing::Refusal("test.spz", [&] { Decode(bytes); });
 }
 
 double Sigmoid(double x) { return 1 / (1 + std::exp(-x)); }
