@@ -304,14 +304,16 @@ class SogDecoder {
            "layout, is not read; convert it with splat-transform)");
     }
     if (!meta["version"].is_number_integer() || meta["version"] != 2) {
-      Fail(where + ": version " + Printable(meta["version"].dump()) +
-           ", expected 2");
+      Fail(where + ": version " +
+           Printable(meta["version"].dump().substr(0, 40)) + ", expected 2");
     }
     count_ = Count(where, meta, "count", kMaxSogCount);
     if (info != nullptr && meta.contains("asset") &&
         meta["asset"].is_object() && meta["asset"].contains("generator") &&
         meta["asset"]["generator"].is_string()) {
-      info->generator = meta["asset"]["generator"].get<std::string>();
+      // Shown by ply_info: one printable line, however long the text.
+      info->generator = Printable(
+          meta["asset"]["generator"].get<std::string>().substr(0, 80));
     }
     int bands = 0;
     size_t palette = 0;
