@@ -108,7 +108,8 @@ void Quantize1d(const std::vector<float>& values, int k,
 
 void KMeans(const std::vector<float>& points, int dim, size_t k, int iterations,
             uint64_t seed, std::vector<float>* centroids,
-            std::vector<uint32_t>* labels) {
+            std::vector<uint32_t>* labels,
+            const std::function<void(int)>& on_round) {
   if (dim < 1 || points.size() % size_t(dim) != 0) {
     Fail("KMeans: points are not rows of dim floats");
   }
@@ -164,6 +165,7 @@ void KMeans(const std::vector<float>& points, int dim, size_t k, int iterations,
       std::copy_n(&points[worst.back() * d], d, &(*centroids)[c * d]);
       worst.pop_back();
     }
+    if (on_round) on_round(round + 1);
   }
   AssignNearest(points, d, *centroids, labels, &dist2);
 }

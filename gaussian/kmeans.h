@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace watergs {
@@ -20,8 +21,10 @@ void Quantize1d(const std::vector<float>& values, int k,
 // point's label its nearest centroid (exact, via a k-d tree). Seeds are k
 // distinct points picked with `seed`, so a run is reproducible; a centroid
 // left without points takes the point farthest from its own centroid.
+// `on_round`, if set, is called after each round with the rounds done.
 void KMeans(const std::vector<float>& points, int dim, size_t k, int iterations,
             uint64_t seed, std::vector<float>* centroids,
-            std::vector<uint32_t>* labels);
+            std::vector<uint32_t>* labels,
+            const std::function<void(int)>& on_round = nullptr);
 
 }  // namespace watergs

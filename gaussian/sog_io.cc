@@ -20,6 +20,7 @@
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/kmeans.h"
+#include "gaussian/progress.h"
 
 namespace watergs {
 namespace {
@@ -656,8 +657,18 @@ json EncodeShN(const GaussianModel& model, const std::vector<uint32_t>& order,
   while (palette * 2 <= std::min<size_t>(layout.count, 65536)) palette *= 2;
   std::vector<float> centroids;
   std::vector<uint32_t> labels;
+  // The palette is the slow part (33 s for 40k Gaussians on 2 cores): a
+  // bar with an ETA where it takes more than a few seconds.
+  std::unique_ptr<ProgressBar> bar;
+  if (layout.count >= 16384) {
+    bar = std::make_unique<ProgressBar>("sog palette",
+                                        options.palette_iterations);
+  }
   KMeans(model.sh_rest, dim, palette, options.palette_iterations, 0, &centroids,
-         &labels);
+         &labels, [&](int done) {
+           if (bar) bar->Update(done, std::to_string(palette) + " entries");
+         });
+  if (bar) bar->Finish();
   std::vector<float> codebook;
   std::vector<uint32_t> value_labels;
   Quantize1d(centroids, kCodebookSize, &codebook, &value_labels);
