@@ -361,14 +361,16 @@ class SogDecoder {
         Fail(at + ": log-space range beyond +-88 (positions beyond float)");
       }
     }
+    // As splat-transform reads it: a zero range spans 1.
+    double range[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      range[axis] = maxs[axis] != mins[axis] ? maxs[axis] - mins[axis] : 1.0;
+    }
     for (size_t i = 0; i < count_; ++i) {
       for (int axis = 0; axis < 3; ++axis) {
         const int q = low.at(i)[axis] | (high.at(i)[axis] << 8);
-        // As splat-transform reads it: a zero range spans 1.
-        const double range =
-            maxs[axis] != mins[axis] ? maxs[axis] - mins[axis] : 1.0;
         const double v =
-            std::clamp(mins[axis] + range * (q / 65535.0), -88.0, 88.0);
+            std::clamp(mins[axis] + range[axis] * (q / 65535.0), -88.0, 88.0);
         const double x = std::expm1(std::abs(v));
         model->means[3 * i + axis] = float(v < 0 ? -x : x);
       }
@@ -424,27 +426,29 @@ class SogDecoder {
     return codebook[index];
   }
 
-  void DecodeScales(const std::string& where, const json& scales,
-                    GaussianModel* model) const {
-    const std::string at = where + ".scales";
-    const std::vector<float> codebook = Codebook(at, scales);
-    const Rgba image = Image(FileNames(at, scales, 1)[0], count_);
+  // Three codebook indices a pixel (rgb) into `out` (N x 3); returns the
+  // image, whose alpha sh0 uses.
+  Rgba DecodeIndexed(const std::string& at, const json& object,
+                     std::vector<float>* out) const {
+    const std::vector<float> codebook = Codebook(at, object);
+    Rgba image = Image(FileNames(at, object, 1)[0], count_);
     for (size_t i = 0; i < count_; ++i) {
       for (int j = 0; j < 3; ++j) {
-        model->log_scales[3 * i + j] = Lookup(codebook, image.at(i)[j], at, i);
+        (*out)[3 * i + j] = Lookup(codebook, image.at(i)[j], at, i);
       }
     }
+    return image;
+  }
+
+  void DecodeScales(const std::string& where, const json& scales,
+                    GaussianModel* model) const {
+    DecodeIndexed(where + ".scales", scales, &model->log_scales);
   }
 
   void DecodeSh0(const std::string& where, const json& sh0,
                  GaussianModel* model) const {
-    const std::string at = where + ".sh0";
-    const std::vector<float> codebook = Codebook(at, sh0);
-    const Rgba image = Image(FileNames(at, sh0, 1)[0], count_);
+    const Rgba image = DecodeIndexed(where + ".sh0", sh0, &model->sh_dc);
     for (size_t i = 0; i < count_; ++i) {
-      for (int j = 0; j < 3; ++j) {
-        model->sh_dc[3 * i + j] = Lookup(codebook, image.at(i)[j], at, i);
-      }
       model->opacity_logits[i] = AlphaToOpacityLogit(image.at(i)[3] / 255.0);
     }
   }

@@ -20,6 +20,7 @@
 #include "gaussian/sog_io.h"
 #include "gaussian/splat_io.h"
 #include "gaussian/spz_io.h"
+#include "tests/common/refusal.h"
 
 namespace watergs {
 namespace {
@@ -45,16 +46,7 @@ GaussianModel RandomModel(size_t n, int sh_degree, uint32_t seed) {
 }
 
 std::string Refusal(const std::string& path) {
-  try {
-    ReadModelFile(path);
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message;
-  }
-  ADD_FAILURE() << path << " accepted";
-  return "";
+  return testing::Refusal(path, [&] { ReadModelFile(path); });
 }
 
 // Every format saved under a name that says another: the content decides.
