@@ -17,12 +17,16 @@
 #   sanitize  compute-sanitizer memcheck, racecheck and synccheck on the
 #             tests of the rasterizer, the device-resident embedding step
 #             and the feature decoder twin
+#   profile   (named only) Nsight Systems' kernel summary of 300 demo
+#             embedding iterations (after the demo stage), and Nsight
+#             Compute's per-kernel summary of the 1M-Gaussian 1920x1080
+#             rasterizer benchmark's first iterations
 # Logs: DIR/<stage>.txt and DIR/env.txt; a summary on stdout. Exit status:
 # 0 when every stage ran clean, 1 when one failed, 2 on bad arguments or a
 # bundle that cannot be placed.
 set -uo pipefail
 die() { echo "gpu_check: $*" >&2; exit 2; }
-usage="gpu_check.sh [--bundle FILE] [--out DIR] [--deadline S] [parity] [demo] [bench] [sanitize]"
+usage="gpu_check.sh [--bundle FILE] [--out DIR] [--deadline S] [parity] [demo] [bench] [sanitize] [profile]"
 bundle=.gpu/bundle.tar.xz out=gpu_out deadline=540 stages=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -36,7 +40,7 @@ while [ $# -gt 0 ]; do
       esac
       shift 2 ;;
     -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
-    parity|demo|bench|sanitize) stages+=("$1"); shift ;;
+    parity|demo|bench|sanitize|profile) stages+=("$1"); shift ;;
     *) die "unknown argument '$1' (usage: $usage)" ;;
   esac
 done
@@ -118,12 +122,41 @@ stage_bench() {
 stage_sanitize() {
   local rc=0 tool
   for tool in memcheck racecheck synccheck; do
+    # racecheck is the slow tool: the embedding tests took over 60 s under
+    # it on an H200.
+    local cap=60; [ $tool = racecheck ] && cap=240
     step 60 "$tool rasterizer" compute-sanitizer --tool $tool --error-exitcode 9 \
       "$T/watergs_gaussian_test" --gtest_filter='CudaRasterizer.*' || rc=1
-    step 60 "$tool embedding" compute-sanitizer --tool $tool --error-exitcode 9 \
+    step $cap "$tool embedding" compute-sanitizer --tool $tool --error-exitcode 9 \
       "$T/watergs_watermark_test" --gtest_filter='EmbedderCuda.DeviceResident*:CudaFeatureDecoder.*' || rc=1
   done > "$out/sanitize.txt" 2>&1
   grep -E "^== |ERROR SUMMARY" "$out/sanitize.txt"
+  return $rc
+}
+
+# The tools where CUDA images keep them, when not on PATH.
+find_tool() { command -v "$1" 2>/dev/null ||
+  ls /usr/local/cuda/bin/"$1" /opt/nvidia/nsight-*/*/bin/"$1" /opt/nvidia/nsight-*/bin/"$1" 2>/dev/null | head -1; }
+
+stage_profile() {
+  local rc=0 sc=datasets_scripts/demo_scene dec=watermark/models/decoder_48.bin nsys ncu
+  nsys=$(find_tool nsys) ncu=$(find_tool ncu)
+  { if [ -z "$nsys" ]; then echo "profile: no nsys on this machine"
+    elif [ ! -f "$tmp/demo/train/point_cloud.ply" ]; then echo "profile: run the demo stage first"
+    else
+      step 120 "nsys embed" "$nsys" profile --stats=true --force-overwrite true -o "$tmp/embed_profile" \
+        "$W" embed --device cuda --input_path "$tmp/demo/train/point_cloud.ply" --workspace_path $sc \
+        --downscale 2 --decoder $dec --message text:WGS-26 --output_path "$tmp/profiled.ply" --iterations 300 \
+        --crop_size 0 --free_view_fraction 0.5 --gamma 0.03 --densify off --check_every 100000 || rc=1
+    fi
+    if [ -z "$ncu" ]; then echo "profile: no ncu on this machine"
+    else
+      step 150 "ncu raster" "$ncu" --print-summary per-kernel --launch-skip 40 --launch-count 40 \
+        "$B/raster_benchmark" --device cuda --scenes 1000 --repeats 1 || rc=1
+    fi
+  } > "$tmp/profile_raw.txt" 2>&1
+  tr '\r' '\n' < "$tmp/profile_raw.txt" | grep -v -E '^embed \[' > "$out/profile.txt"
+  grep -E "^== |^profile:" "$out/profile.txt"
   return $rc
 }
 

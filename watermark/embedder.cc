@@ -55,13 +55,16 @@ void AddPatch(const ImageRGB& patch, const PixelRect& rect, float scale,
 
 double MessageBce(const std::vector<float>& logits,
                   const std::vector<float>& targets, double gamma,
-                  std::vector<float>* dlogits, int* bit_errors) {
+                  std::vector<float>* dlogits, int* bit_errors, double margin) {
   if (logits.size() != targets.size()) {
     Fail("message loss: the decoder reads " + std::to_string(logits.size()) +
          " bits, the message has " + std::to_string(targets.size()));
   }
   Tensor logit_tensor(1, static_cast<int>(logits.size()), 1, 1);
   logit_tensor.data = logits;
+  for (size_t i = 0; i < logits.size(); ++i) {
+    logit_tensor.data[i] -= float(margin) * (targets[i] > 0.5f ? 1.f : -1.f);
+  }
   Tensor grad;
   const double bce = BceWithLogits(logit_tensor, targets, &grad);
   if (bit_errors) {
@@ -82,20 +85,10 @@ double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
   ImageRGB cropped, grad;
   if (!crop.empty()) CropImage(image, crop, &cropped);
   const ImageRGB& decoded = crop.empty() ? image : cropped;
-  std::vector<float> logits = decoder.Logits(decoded);
-  if (bit_errors) {
-    *bit_errors = 0;
-    for (size_t i = 0; i < logits.size() && i < targets.size(); ++i) {
-      *bit_errors += (logits[i] > 0) != (targets[i] > 0.5f);
-    }
-  }
-  if (margin > 0 && logits.size() == targets.size()) {
-    for (size_t i = 0; i < logits.size(); ++i) {
-      logits[i] -= float(margin) * (targets[i] > 0.5f ? 1.f : -1.f);
-    }
-  }
+  const std::vector<float> logits = decoder.Logits(decoded);
   std::vector<float> dlogits;
-  const double bce = MessageBce(logits, targets, gamma, &dlogits, nullptr);
+  const double bce =
+      MessageBce(logits, targets, gamma, &dlogits, bit_errors, margin);
   decoder.InputGradient(decoded, dlogits, &grad);
   AddPatch(grad,
            crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop,
@@ -254,14 +247,23 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   auto* cuda_rasterizer = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
   // Either CUDA decoder (HiDDeN or random-feature) reads the render in place.
   auto* cuda_decoder = dynamic_cast<DevicePatchDecoder*>(decoder_);
-  // Decoder jitter and the margin run on the host step only.
-  if (cuda_rasterizer && cuda_decoder && !options_.adam.compact_moments &&
-      !options_.adam.half_moments && !options_.decoder_jitter.enabled() &&
-      options_.margin == 0 && options_.mse_weight == 0) {
+  // Decoder jitter, the MSE term and the compact moments have no device
+  // twin: those runs keep the host step (renders and decoder on the GPU).
+  if (cuda_rasterizer && cuda_decoder) {
+    if (options_.adam.compact_moments || options_.adam.half_moments) {
+      host_step_reason_ = "8-bit or bfloat16 moments have no CUDA Adam";
+    } else if (options_.decoder_jitter.enabled()) {
+      host_step_reason_ = "decoder jitter runs on the host";
+    } else if (options_.mse_weight != 0) {
+      host_step_reason_ = "the MSE term runs on the host";
+    }
+  }
+  if (cuda_rasterizer && cuda_decoder && host_step_reason_.empty()) {
     UseDeviceStep([&](GaussianModel* host_model, Adam* host_adam) {
       return std::make_unique<CudaEmbeddingStep>(
           cuda_rasterizer, cuda_decoder, options_.adam, scene_extent_,
-          options_.beta, options_.gamma, targets_, host_model, host_adam);
+          options_.beta, options_.gamma, options_.margin, targets_, host_model,
+          host_adam);
     });
   }
 #endif

@@ -183,6 +183,9 @@ class Embedder {
   // True when the iterations run on the GPU with the model resident there
   // (a CUDA rasterizer and decoder, float32 moments).
   bool device_resident() const { return device_ != nullptr; }
+  // With a CUDA rasterizer and decoder but host steps: the option that keeps
+  // the step on the host (empty otherwise).
+  const std::string& host_step_reason() const { return host_step_reason_; }
 
  private:
   // What one iteration renders and decodes (drawn from rng_ by Step).
@@ -269,6 +272,7 @@ class Embedder {
   // The device-resident step (null: iterations run on the host model), and
   // whether it took over density control.
   std::unique_ptr<DeviceEmbeddingStep> device_;
+  std::string host_step_reason_;
   bool device_density_ = false;
 };
 
@@ -282,10 +286,13 @@ void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out);
 
 // The message term on decoded logits: returns BCE(targets, logits) (mean
 // over the bits) and sets dlogits = gamma * dBCE/dlogits; bit_errors (if not
-// null) gets the errors of the decoded bits. Error if the lengths differ.
+// null) gets the errors of the decoded bits. margin > 0 moves each logit by
+// margin towards the wrong side before the BCE (the bit errors are the
+// logits' own). Error if the lengths differ.
 double MessageBce(const std::vector<float>& logits,
                   const std::vector<float>& targets, double gamma,
-                  std::vector<float>* dlogits, int* bit_errors);
+                  std::vector<float>* dlogits, int* bit_errors,
+                  double margin = 0);
 
 // The message term on a render: returns BCE(targets, D(image[crop])) (crop
 // in image pixels, empty = all of it) and adds gamma * d BCE / d image into

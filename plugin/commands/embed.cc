@@ -380,14 +380,24 @@ int RunEmbed(int argc, char** argv) {
   const RenderCamera first = views.Camera(train_views.front());
   std::printf(
       "embed: %zu Gaussians, %zu views %dx%d, %d-bit message %s, "
-      "distortions %s, crop %d, density control %s, %d threads\n",
+      "distortions %s, crop %d, density control %s, %d threads, device %s\n",
       ply.model.size(), train_views.size(), first.width, first.height,
       decoder->NumBits(), BitsToHex(message).c_str(), a.distortions.c_str(),
-      a.crop_size, options.densify ? "on" : "off", omp_get_max_threads());
+      a.crop_size, options.densify ? "on" : "off", omp_get_max_threads(),
+      DeviceName(parser.device()).c_str());
 
   const GaussianModel raw = ply.model;
   Embedder embedder(options, views, train_views, std::move(ply.model), extent,
                     in.decoder.get(), message, MakeRasterizer(parser.device()));
+  if (embedder.device_resident()) {
+    std::printf(
+        "embed: every step on the GPU (model, moments and decoder "
+        "resident)\n");
+  } else if (!embedder.host_step_reason().empty()) {
+    std::printf(
+        "embed: steps on the host, renders and decoder on the GPU (%s)\n",
+        embedder.host_step_reason().c_str());
+  }
   if (a.resume) {
     embedder.Resume(checkpoint_path);
     std::printf("embed: resumed at iteration %lld\n",

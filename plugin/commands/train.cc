@@ -265,9 +265,10 @@ int RunTrain(int argc, char** argv) {
   const RenderCamera first = views.Camera(train_views.front());
   std::printf(
       "train: %zu training views, %zu held out, %dx%d, %zu SfM points, "
-      "scene extent %.3f, %d threads\n",
+      "scene extent %.3f, %d threads, device %s\n",
       train_views.size(), test_views.size(), first.width, first.height,
-      init.size(), extent, omp_get_max_threads());
+      init.size(), extent, omp_get_max_threads(),
+      DeviceName(parser.device()).c_str());
 
   TrainerOptions options;
   options.iterations = a.iterations;

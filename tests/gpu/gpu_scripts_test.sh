@@ -33,6 +33,8 @@ expect_error 2 "--out needs a value" bash "$check" --bundle fake.tar.xz --out
 expect_error 2 "no bundle 'missing.tar.xz'" bash "$check" --bundle missing.tar.xz
 parsed=$(GPU_CHECK_PARSE_ONLY=1 bash "$check" --bundle fake.tar.xz --deadline 60 sanitize parity)
 [ "$parsed" = "stages: sanitize parity; bundle fake.tar.xz; out gpu_out; deadline 60" ] || fail "parsed: $parsed"
+parsed=$(GPU_CHECK_PARSE_ONLY=1 bash "$check" --bundle fake.tar.xz demo profile)
+[ "$parsed" = "stages: demo profile; bundle fake.tar.xz; out gpu_out; deadline 540" ] || fail "profile: $parsed"
 parsed=$(GPU_CHECK_PARSE_ONLY=1 bash "$check" --bundle fake.tar.xz)
 [ "$parsed" = "stages: parity demo bench sanitize; bundle fake.tar.xz; out gpu_out; deadline 540" ] || fail "default stages: $parsed"
 bash "$check" --help | grep -q "compute-sanitizer" || fail "gpu_check.sh --help"

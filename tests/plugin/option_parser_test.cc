@@ -147,11 +147,15 @@ Device ParseDevice(const std::string& word) {
   return parser.device();
 }
 
-TEST(OptionParser, DeviceDefaultsToCpuAndAutoFollowsAvailability) {
+// The default is auto (a GPU when one is usable), falling back to the CPU
+// without a word on stderr; cpu stays cpu.
+TEST(OptionParser, DeviceDefaultsToAutoAndFallsBackQuietly) {
   OptionParser parser("demo", "test");
   Args args({"demo"});
+  ::testing::internal::CaptureStderr();
   ASSERT_TRUE(parser.Parse(args.argc(), args.argv()));
-  EXPECT_EQ(parser.device(), Device::kCpu);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_EQ(parser.device(), CudaAvailable() ? Device::kCuda : Device::kCpu);
   EXPECT_EQ(ParseDevice("cpu"), Device::kCpu);
   EXPECT_EQ(ParseDevice("auto"),
             CudaAvailable() ? Device::kCuda : Device::kCpu);
@@ -182,16 +186,16 @@ TEST(OptionParser, AutoSaysOnceThatItFallsBackToTheCpu) {
   EXPECT_EQ(quiet.str(), "");
 }
 
-// The help says what --device takes, that the default is cpu for now, and
-// when auto becomes it.
-TEST(OptionParser, HelpStatesTheDeviceDefaultAndWhenAutoBecomesIt) {
+// The help says what --device takes, that auto is the default and when it
+// speaks.
+TEST(OptionParser, HelpStatesTheDeviceDefault) {
   OptionParser parser("demo", "test");
   Args args({"demo", "-h"});
   ::testing::internal::CaptureStdout();
   EXPECT_FALSE(parser.Parse(args.argc(), args.argv()));
   const std::string help = ::testing::internal::GetCapturedStdout();
-  for (const char* text : {"cpu, cuda or auto", "(=cpu)", "auto becomes the",
-                           "default once", "parity tests"}) {
+  for (const char* text : {"cpu, cuda or auto", "(=auto)",
+                           "silently by default", "says so once"}) {
     EXPECT_NE(help.find(text), std::string::npos) << text << "\n" << help;
   }
 }

@@ -63,11 +63,12 @@ void ExpectClose(const std::vector<float>& gpu, const std::vector<float>& cpu,
 }
 
 // A FeatureNet with a random projection (a fresh one's is zero).
-std::unique_ptr<FeatureNet> RandomNet(int pool, uint32_t seed) {
+std::unique_ptr<FeatureNet> RandomNet(int pool, uint32_t seed, int kernel = 3) {
   FeatureDecoderConfig config;
   config.num_bits = 16;
   config.channels = 96;
   config.pool = pool;
+  config.kernel = kernel;
   auto net = std::make_unique<FeatureNet>(config, seed);
   std::mt19937 rng(seed);
   std::normal_distribution<float> normal(0.f, 1.f);
@@ -90,22 +91,26 @@ std::vector<float> RandomVector(size_t n, std::mt19937* rng) {
   return v;
 }
 
-// Pool sizes 1, 2 and 4 (the shipped one); images from the minimum (one
-// pooled pixel) to ones whose width and height are not multiples of the
-// pool (the CPU drops that border: its gradient must be exactly 0).
+// Pool sizes 1, 2 and 4 (the shipped one) with the shipped 3x3 kernel, and
+// 1x1 and 5x5 kernels (the im2col rows and their zero padding); images from
+// the minimum (one pooled pixel) to ones whose width and height are not
+// multiples of the pool (the CPU drops that border: its gradient must be
+// exactly 0).
 TEST(CudaFeatureDecoder, LogitsAndInputGradientMatchCpu) {
   WATERGS_REQUIRE_CUDA();
   std::mt19937 rng(5);
-  for (int pool : {1, 2, 4}) {
-    std::unique_ptr<FeatureNet> cpu_net = RandomNet(pool, 11 + pool);
+  const int pool_kernel[][2] = {{1, 3}, {2, 3}, {4, 3}, {2, 1}, {2, 5}};
+  for (const auto& [pool, kernel] : pool_kernel) {
+    std::unique_ptr<FeatureNet> cpu_net =
+        RandomNet(pool, 11 + pool + kernel, kernel);
     CudaFeatureDecoder gpu(*cpu_net);
     FeatureDecoder cpu(std::move(cpu_net));
     ASSERT_EQ(gpu.NumBits(), 16);
     const int sizes[][2] = {{pool, pool}, {32, 32}, {37, 29}, {70, 41}};
     for (const auto& size : sizes) {
-      const std::string what = "pool " + std::to_string(pool) + " " +
-                               std::to_string(size[0]) + "x" +
-                               std::to_string(size[1]);
+      const std::string what =
+          "pool " + std::to_string(pool) + " kernel " + std::to_string(kernel) +
+          " " + std::to_string(size[0]) + "x" + std::to_string(size[1]);
       const ImageRGB image = TestImage(size[0], size[1], &rng);
       ExpectClose(gpu.Logits(image), cpu.Logits(image), what + " logits");
       const std::vector<float> dlogits = RandomVector(16, &rng);

@@ -68,7 +68,8 @@ class EmulatedEmbeddingStep : public DeviceEmbeddingStep {
     DeviceEmbedLoss out;
     out.image = loss_.Evaluate(render_, *view.truth, &grad_image_);
     out.bce = AddMessageLoss(*decoder_, render_, view.decoder_crop, targets_,
-                             options_.gamma, &grad_image_, &out.bit_errors);
+                             options_.gamma, &grad_image_, &out.bit_errors,
+                             options_.margin);
     return out;
   }
   DensityEvent BackwardAndUpdate(int64_t iteration, double*, double*,

@@ -207,6 +207,36 @@ TEST(Embedder, MessageGradientMatchesFiniteDifferences) {
   }
 }
 
+// The margin moves each logit towards its wrong side before the BCE (so a
+// bit decoded right but closer than the margin still pulls), while the bit
+// errors stay those of the decoded logits. Checked against the formula in
+// double: BCE = mean softplus(-+z), d/dz = gamma (sigmoid(z) - t) / n.
+TEST(MessageBce, MarginShiftsTheLossButNotTheBitErrors) {
+  const std::vector<float> logits = {2.f, -1.f, 0.5f, -4.f};
+  const std::vector<float> targets = {1.f, 0.f, 0.f, 1.f};
+  const double margin = 3, gamma = 0.5;
+  std::vector<float> dlogits;
+  int errors = -1;
+  const double bce =
+      MessageBce(logits, targets, gamma, &dlogits, &errors, margin);
+  EXPECT_EQ(errors, 2);  // 0.5 read as 1, -4 read as 0
+  double expected = 0;
+  ASSERT_EQ(dlogits.size(), logits.size());
+  for (size_t i = 0; i < logits.size(); ++i) {
+    const double sign = targets[i] > 0.5f ? 1 : -1;
+    const double z = logits[i] - margin * sign;
+    expected += std::log1p(std::exp(-sign * z)) / logits.size();
+    const double dz =
+        gamma * (1 / (1 + std::exp(-z)) - targets[i]) / double(logits.size());
+    EXPECT_NEAR(dlogits[i], dz, 1e-6) << "bit " << i;
+  }
+  EXPECT_NEAR(bce, expected, 1e-6);
+  // Without the margin the right bits with |z| > 0 pull less.
+  std::vector<float> plain;
+  MessageBce(logits, targets, gamma, &plain, nullptr);
+  EXPECT_LT(std::abs(plain[0]), std::abs(dlogits[0]));
+}
+
 TEST(Embedder, EmbeddingLowersTheBitErrorRate) {
   Scene s = MakeScene(2, 32, 24);
   HiddenModel net(TinyDecoderConfig(16), false, 5);
@@ -491,8 +521,9 @@ TEST(EmbedderCuda, DeviceResidentFullFrameStepsMatchTheCpuEmbedder) {
 
 // The shipped decoder's kind, the random-feature decoder: with its CUDA
 // twin (LoadBitDecoder, --device cuda) the embedder takes the
-// device-resident step too, whole-frame as the demo runs it, and its steps
-// match the CPU embedder with the CPU decoder read from the same file.
+// device-resident step too, whole-frame and with embed's default logit
+// margin as the demo runs it, and its steps match the CPU embedder with the
+// CPU decoder read from the same file.
 TEST(EmbedderCuda, DeviceResidentStepsWithTheFeatureDecoderMatchTheCpu) {
   WATERGS_REQUIRE_CUDA();
   Scene s = MakeScene(2, 40, 28);
@@ -516,6 +547,7 @@ TEST(EmbedderCuda, DeviceResidentStepsWithTheFeatureDecoderMatchTheCpu) {
   std::filesystem::remove(path);
   EmbedOptions o = DeviceParityOptions(8);
   o.full_frame_image_loss = true;
+  o.margin = 3;
   ExpectRunsMatch(o, s, *cpu_decoder, *gpu_decoder, RandomBits(16, 9),
                   Device::kCuda);
 }

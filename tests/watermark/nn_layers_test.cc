@@ -84,9 +84,9 @@ double Dot(const std::vector<double>& a, const std::vector<float>& b) {
   return s;
 }
 
-void CheckConv(int kernel) {
+void CheckConv(int kernel, int h = 5, int w = 6) {
   std::mt19937 rng(3);
-  const int n = 2, cin = 3, cout = 4, h = 5, w = 6;
+  const int n = 2, cin = 3, cout = 4;
   Conv2d conv("c", cin, cout, kernel, &rng);
   Tensor x = RandomTensor(n, cin, h, w, &rng);
   Tensor dy = RandomTensor(n, cout, h, w, &rng);
@@ -108,6 +108,14 @@ void CheckConv(int kernel) {
 
 TEST(Conv2dTest, Kernel3MatchesReferenceAndFiniteDifferences) { CheckConv(3); }
 TEST(Conv2dTest, Kernel1MatchesReferenceAndFiniteDifferences) { CheckConv(1); }
+// Padding wider than the image (5x5 kernel on 1x1, 1x3 and 2x1 inputs): the
+// im2col wrote past its row there (found by the CUDA feature decoder's
+// parity test, whose CPU side then read garbage and crashed in free()).
+TEST(Conv2dTest, KernelWiderThanTheImageMatchesReference) {
+  CheckConv(5, 1, 1);
+  CheckConv(5, 1, 3);
+  CheckConv(5, 2, 1);
+}
 
 // Reference batch norm in double (batch statistics or given ones).
 std::vector<double> RefBatchNorm(const std::vector<double>& x, int n, int c,

@@ -39,13 +39,15 @@ CudaEmbeddingStep::CudaEmbeddingStep(CudaRasterizer* rasterizer,
                                      DevicePatchDecoder* decoder,
                                      const AdamOptions& adam_options,
                                      double scene_extent, double beta,
-                                     double gamma, std::vector<float> targets,
+                                     double gamma, double margin,
+                                     std::vector<float> targets,
                                      GaussianModel* host_model, Adam* host_adam)
     : rasterizer_(rasterizer),
       decoder_(decoder),
       mirror_(adam_options, scene_extent, host_model, host_adam),
       loss_(beta),
       gamma_(gamma),
+      margin_(margin),
       targets_(std::move(targets)) {}
 
 CudaEmbeddingStep::~CudaEmbeddingStep() = default;
@@ -118,7 +120,8 @@ DeviceEmbedLoss CudaEmbeddingStep::Forward(const DeviceEmbedView& view,
   const std::vector<float> logits =
       decoder_->LogitsDevicePatch(image_.data(), rect.width, crop);
   std::vector<float> dlogits;
-  out.bce = MessageBce(logits, targets_, gamma_, &dlogits, &out.bit_errors);
+  out.bce =
+      MessageBce(logits, targets_, gamma_, &dlogits, &out.bit_errors, margin_);
   decoder_->AddInputGradientDevicePatch(dlogits, grad_image_.data(), rect.width,
                                         crop);
   out.decoder_s = StageSeconds(&t);

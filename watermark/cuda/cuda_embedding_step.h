@@ -47,8 +47,9 @@ class CudaEmbeddingStep : public DeviceEmbeddingStep {
   // must outlive this; targets holds the message's 0/1 bits.
   CudaEmbeddingStep(CudaRasterizer* rasterizer, DevicePatchDecoder* decoder,
                     const AdamOptions& adam_options, double scene_extent,
-                    double beta, double gamma, std::vector<float> targets,
-                    GaussianModel* host_model, Adam* host_adam);
+                    double beta, double gamma, double margin,
+                    std::vector<float> targets, GaussianModel* host_model,
+                    Adam* host_adam);
   ~CudaEmbeddingStep() override;
 
   // DeviceEmbeddingStep. Forward draws from rng as the host step does
@@ -83,6 +84,7 @@ class CudaEmbeddingStep : public DeviceEmbeddingStep {
   CudaModelMirror mirror_;
   CudaTrainingLoss loss_;
   double gamma_;
+  double margin_;  // see MessageBce
   std::vector<float> targets_;
   std::map<const DistortionLayer*, std::unique_ptr<CudaDistortionLayer>>
       layers_;

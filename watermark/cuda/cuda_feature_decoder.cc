@@ -1,6 +1,7 @@
 // The random-feature decoder on the GPU (see cuda_feature_decoder.h).
 #include "watermark/cuda/cuda_feature_decoder.h"
 
+#include <algorithm>
 #include <cstring>
 #include <string>
 
@@ -21,8 +22,23 @@ std::unique_ptr<CudaFeatureDecoder> CudaFeatureDecoder::Load(
 CudaFeatureDecoder::CudaFeatureDecoder(FeatureNet& net, bool allow_tf32)
     : config_(net.config()),
       context_(std::make_unique<CudaNnContext>(allow_tf32)),
-      conv_(std::make_unique<CudaConv2d>(context_.get(), net.conv)),
-      linear_(std::make_unique<CudaLinear>(context_.get(), net.linear)) {}
+      linear_(std::make_unique<CudaLinear>(context_.get(), net.linear)) {
+  const int taps = ConvTaps(), channels = config_.channels;
+  const std::vector<float>& w = net.conv.weight.value;
+  const std::vector<float>& b = net.conv.bias.value;
+  if (w.size() != size_t(channels) * taps || b.size() != size_t(channels))
+    Fail("feature decoder: conv weights of " + std::to_string(w.size()) +
+         " values and bias of " + std::to_string(b.size()) + ", expected " +
+         std::to_string(size_t(channels) * taps) + " and " +
+         std::to_string(channels));
+  std::vector<float> rows(size_t(channels) * (taps + 1));
+  for (int c = 0; c < channels; ++c) {
+    std::copy_n(w.begin() + size_t(c) * taps, taps,
+                rows.begin() + size_t(c) * (taps + 1));
+    rows[size_t(c) * (taps + 1) + taps] = b[c];
+  }
+  conv_weights_.Upload(rows);
+}
 
 CudaFeatureDecoder::~CudaFeatureDecoder() = default;
 
@@ -36,10 +52,22 @@ void CudaFeatureDecoder::ForwardDevice(const float* image_hwc, int width,
          std::to_string(p) + "x" + std::to_string(p) + " pooling");
   width_ = width;
   height_ = height;
-  pooled_.Resize(1, 3, height / p, width / p);
+  const int ph = height / p, pw = width / p, k = config_.kernel;
+  const int taps = ConvTaps(), plane = ph * pw;
+  pooled_.Resize(1, 3, ph, pw);
   WATERGS_CUDA_CHECK(feature_kernels::ImageToPooledInput(
       image_hwc, width, height, pitch, p, pooled_.ptr()));
-  conv_->Forward(pooled_, &conv_out_);
+  cols_.Resize(size_t(taps + 1) * plane);
+  WATERGS_CUDA_CHECK(
+      feature_kernels::Im2Col(pooled_.ptr(), 3, ph, pw, k, cols_.data()));
+  // Row-major conv [channels, plane] = W [channels, taps + 1] cols; in
+  // cuBLAS's column-major terms conv^T = cols^T W^T.
+  conv_out_.Resize(1, config_.channels, ph, pw);
+  const float one = 1.f, zero = 0.f;
+  WATERGS_CUBLAS_CHECK(cublasSgemm(context_->cublas(), CUBLAS_OP_N, CUBLAS_OP_N,
+                                   plane, config_.channels, taps + 1, &one,
+                                   cols_.data(), plane, conv_weights_.data(),
+                                   taps + 1, &zero, conv_out_.ptr(), plane));
   features_.Resize(1, config_.channels, 1, 1);
   WATERGS_CUDA_CHECK(feature_kernels::ReluGlobalAvgPool(
       conv_out_.ptr(), config_.channels, conv_out_.PlaneSize(),
@@ -60,7 +88,17 @@ void CudaFeatureDecoder::BackwardDevice(const std::vector<float>& dlogits,
   WATERGS_CUDA_CHECK(feature_kernels::ReluGlobalAvgPoolBackward(
       dfeatures_.ptr(), conv_out_.ptr(), config_.channels,
       conv_out_.PlaneSize(), dconv_.ptr()));
-  conv_->Backward(pooled_, dconv_, &dpooled_, false);
+  // dcols [taps, plane] = W[:, :taps]^T dconv: dcols^T = dconv^T W[:, :taps].
+  const int taps = ConvTaps(), plane = int(conv_out_.PlaneSize());
+  const float one = 1.f, zero = 0.f;
+  dcols_.Resize(size_t(taps) * plane);
+  WATERGS_CUBLAS_CHECK(cublasSgemm(context_->cublas(), CUBLAS_OP_N, CUBLAS_OP_T,
+                                   plane, taps, config_.channels, &one,
+                                   dconv_.ptr(), plane, conv_weights_.data(),
+                                   taps + 1, &zero, dcols_.data(), plane));
+  dpooled_.ResizeLike(pooled_);
+  WATERGS_CUDA_CHECK(feature_kernels::Col2Im(
+      dcols_.data(), 3, pooled_.h, pooled_.w, config_.kernel, dpooled_.ptr()));
   WATERGS_CUDA_CHECK(feature_kernels::PooledGradientToImage(
       dpooled_.ptr(), width_, height_, pitch, config_.pool, accumulate,
       dimage_hwc));

@@ -36,6 +36,54 @@ __global__ void ImageToPooledKernel(const float* hwc, int pw, int ph, int pitch,
   }
 }
 
+// One thread per column entry.
+__global__ void Im2ColKernel(const float* pooled, int in, int ph, int pw, int k,
+                             float* cols) {
+  const size_t plane = size_t(ph) * pw;
+  const int rows = in * k * k;
+  const size_t n = (rows + 1) * plane;
+  const int pad = k / 2;
+  for (size_t i = blockIdx.x * size_t(blockDim.x) + threadIdx.x; i < n;
+       i += size_t(gridDim.x) * blockDim.x) {
+    const int row = int(i / plane);
+    const int y = int(i % plane / pw), x = int(i % pw);
+    float v = 1.f;
+    if (row < rows) {
+      const int c = row / (k * k), dy = row / k % k, dx = row % k;
+      const int sy = y + dy - pad, sx = x + dx - pad;
+      v = sy >= 0 && sy < ph && sx >= 0 && sx < pw
+              ? pooled[(size_t(c) * ph + sy) * pw + sx]
+              : 0.f;
+    }
+    cols[i] = v;
+  }
+}
+
+// One thread per input value: the output pixels whose window holds it.
+__global__ void Col2ImKernel(const float* dcols, int in, int ph, int pw, int k,
+                             float* dpooled) {
+  const size_t plane = size_t(ph) * pw;
+  const size_t n = size_t(in) * plane;
+  const int pad = k / 2;
+  for (size_t i = blockIdx.x * size_t(blockDim.x) + threadIdx.x; i < n;
+       i += size_t(gridDim.x) * blockDim.x) {
+    const int c = int(i / plane);
+    const int y = int(i % plane / pw), x = int(i % pw);
+    float sum = 0.f;
+    for (int dy = 0; dy < k; ++dy) {
+      const int oy = y - dy + pad;
+      if (oy < 0 || oy >= ph) continue;
+      for (int dx = 0; dx < k; ++dx) {
+        const int ox = x - dx + pad;
+        if (ox < 0 || ox >= pw) continue;
+        const int row = (c * k + dy) * k + dx;
+        sum = __fadd_rn(sum, dcols[row * plane + size_t(oy) * pw + ox]);
+      }
+    }
+    dpooled[i] = sum;
+  }
+}
+
 // One block per channel: per-thread double sums of max(y, 0), then a fixed
 // shared-memory tree (the order depends on hw alone).
 __global__ void ReluGlobalAvgPoolKernel(const float* conv, size_t hw,
@@ -97,6 +145,22 @@ cudaError_t ImageToPooledInput(const float* hwc, int width, int height,
   if (n == 0) return cudaSuccess;
   ImageToPooledKernel<<<GridFor(n), kThreads>>>(hwc, pw, ph, pitch, p,
                                                 1.f / float(p * p), pooled);
+  return cudaGetLastError();
+}
+
+cudaError_t Im2Col(const float* pooled, int in, int ph, int pw, int k,
+                   float* cols) {
+  const size_t n = (size_t(in) * k * k + 1) * ph * pw;
+  if (n == 0) return cudaSuccess;
+  Im2ColKernel<<<GridFor(n), kThreads>>>(pooled, in, ph, pw, k, cols);
+  return cudaGetLastError();
+}
+
+cudaError_t Col2Im(const float* dcols, int in, int ph, int pw, int k,
+                   float* dpooled) {
+  const size_t n = size_t(in) * ph * pw;
+  if (n == 0) return cudaSuccess;
+  Col2ImKernel<<<GridFor(n), kThreads>>>(dcols, in, ph, pw, k, dpooled);
   return cudaGetLastError();
 }
 
