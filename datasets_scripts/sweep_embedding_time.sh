@@ -126,7 +126,7 @@ rel() { sed -e "s#$root/##g"; }
 if [ -z "$raw_path" ]; then
   raw_dir="$out/raw"
   rm -rf "$raw_dir.partial"
-  cmd=(nice -n 10 "$binary" train --workspace_path "$workspace" --output_path "$raw_dir.partial"
+  cmd=(nice -n 10 "$binary" train --device cpu --workspace_path "$workspace" --output_path "$raw_dir.partial"
     --downscale "$downscale" --iterations "$raw_iterations" --eval
     --test_iterations "$raw_iterations" --num_threads "$threads" --seed "$seed")
   echo "${cmd[*]}" | sed -e "s#$raw_dir.partial#$raw_dir#" | rel >>"$commands"
@@ -156,7 +156,7 @@ for len in "${lengths[@]}"; do
         wm="$out/points/$name.ply"
         tmp_wm="$out/points/.$name.partial.ply"
         rm -f "$tmp_wm" "$tmp_wm.ckpt"
-        cmd=(nice -n 10 "$binary" embed --input_path "$raw_path" --workspace_path "$workspace"
+        cmd=(nice -n 10 "$binary" embed --device cpu --input_path "$raw_path" --workspace_path "$workspace"
           --downscale "$downscale" --decoder "$dec" --message "$message" --output_path "$tmp_wm"
           --iterations "$iters" --crop_size "$crop" --distortions "$dist_arg"
           --num_threads "$threads" --seed "$seed" --eval)
@@ -168,7 +168,7 @@ for len in "${lengths[@]}"; do
         "${cmd[@]}" >"$out/points/.$name.embed.txt" 2>&1 || die "embed failed for $name (see $out/points/.$name.embed.txt)"
         t1=$(date +%s.%N)
         mv "$tmp_wm" "$wm"
-        ecmd=(nice -n 10 "$binary" eval --raw_path "$raw_path" --input_path "$wm"
+        ecmd=(nice -n 10 "$binary" eval --device cpu --raw_path "$raw_path" --input_path "$wm"
           --workspace_path "$workspace" --downscale "$downscale" --decoder "$dec"
           --message "$message" --output_path "$out/points/.$name.eval" --attacks "$attacks"
           --image_attacks '' --lpips_weights '' --num_threads "$threads" --seed "$seed")

@@ -97,7 +97,7 @@ for s in "${settings[@]}"; do
   mkdir -p "$run.partial"
   tests=$(seq -s, "$test_every" "$test_every" "$iters")
   case ",$tests," in *",$iters,"*) ;; *) tests="$tests,$iters" ;; esac
-  cmd=(nice -n 10 "$binary" train --workspace_path "$workspace" --output_path "$run.partial"
+  cmd=(nice -n 10 "$binary" train --device cpu --workspace_path "$workspace" --output_path "$run.partial"
     --downscale "$ds" --iterations "$iters" --eval --test_iterations "$tests"
     --num_threads "$threads" --seed "$seed" --densify_until_iter "$until" --log_every 50)
   echo "${cmd[*]}" | sed -e "s#$run.partial#$run#" -e "s#$root/##g" >>"$commands"

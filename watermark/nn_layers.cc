@@ -50,7 +50,10 @@ void Im2Col(const float* image, int channels, int height, int width, int k,
           const int x0 = std::min(width, std::max(0, pad - kx));
           const int x1 = std::max(x0, std::min(width, width + pad - kx));
           for (int x = 0; x < x0; ++x) out[x] = 0.f;
-          std::memcpy(out + x0, in + x0 + kx - pad, sizeof(float) * (x1 - x0));
+          if (x1 > x0) {
+            std::memcpy(out + x0, in + x0 + kx - pad,
+                        sizeof(float) * (x1 - x0));
+          }
           for (int x = x1; x < width; ++x) out[x] = 0.f;
         }
       }

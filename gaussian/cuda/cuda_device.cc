@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <string>
 
 #include "gaussian/cuda/cuda_check.h"
+#include "gaussian/cuda/kernel_image.h"
 
 namespace watergs {
 namespace {
@@ -35,6 +37,20 @@ bool CudaDeviceVisible(std::string* why) {
   }
   if (count == 0) {
     if (why) *why = "no CUDA device visible (cudaGetDeviceCount = 0)";
+    return false;
+  }
+  const cudaError_t image = CheckKernelImage();
+  if (image != cudaSuccess) {
+    if (why) {
+      cudaDeviceProp prop{};
+      cudaGetDeviceProperties(&prop, 0);
+      *why = std::string(prop.name) + " (compute " +
+             std::to_string(prop.major) + "." + std::to_string(prop.minor) +
+             ") cannot run this build's kernels (" + cudaGetErrorString(image) +
+             "; rebuild with -DCMAKE_CUDA_ARCHITECTURES=" +
+             std::to_string(prop.major) + std::to_string(prop.minor) + ")";
+    }
+    cudaGetLastError();
     return false;
   }
   return true;

@@ -5,7 +5,8 @@
 
 namespace watergs {
 
-// True if the CUDA runtime sees at least one device; else `why` says why.
+// True if the CUDA runtime sees at least one device and this build has
+// kernels it can run; else `why` says why.
 bool CudaDeviceVisible(std::string* why);
 
 // "NVIDIA H100 80GB HBM3, 79.1 GiB, compute 9.0" for device 0.

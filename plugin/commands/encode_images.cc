@@ -67,7 +67,8 @@ int RunEncodeImages(int argc, char** argv) {
   parser.AddRequired("message", &message_text,
                      std::string("Message: ") + kMessageFormats);
   if (!parser.Parse(argc, argv)) return 0;
-  if (parser.device() == Device::kCuda) {
+  // The default (auto) runs it on the CPU; only an explicit cuda is refused.
+  if (parser.Given("device") && parser.device() == Device::kCuda) {
     Fail("encode_images: the encoder runs on the CPU (use --device cpu)");
   }
   if (SamePath(image_path, output_path)) {

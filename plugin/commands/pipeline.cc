@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/text_util.h"
@@ -52,6 +53,8 @@ void RunInProcess(const StageArgs& args) {
 struct PipelineArgs {
   std::string image_path, output_path, decoder, message, key, train_args,
       embed_args;
+  // "cpu" or "cuda" when --device was given (else each stage's default).
+  std::string device;
   int downscale = 2, iterations = 7000, num_threads = 0;
 };
 
@@ -75,6 +78,11 @@ std::vector<StageArgs> PipelineStages(const PipelineArgs& a,
        (out / "watermarked.ply").string(), "--eval", "--checkpoint_every",
        "250", "--report", (out / "report.html").string()}};
   if (!a.key.empty()) stages[2].insert(stages[2].end(), {"--key", a.key});
+  if (!a.device.empty()) {
+    for (size_t k = 1; k < 3; ++k) {
+      stages[k].insert(stages[k].end(), {"--device", a.device});
+    }
+  }
   for (size_t k = 1; k < 3; ++k) {
     stages[k].insert(stages[k].end(), common.begin(), common.end());
     for (const std::string& w :
@@ -108,6 +116,7 @@ int RunPipeline(int argc, char** argv) {
              "More embed options, space-separated");
   parser.Add("num_threads", &a.num_threads, "Threads (0 = all cores)");
   if (!parser.Parse(argc, argv)) return 0;
+  if (parser.Given("device")) a.device = DeviceName(parser.device());
   if (a.iterations < 1) Fail("pipeline: --iterations must be >= 1");
   if (!fs::is_directory(a.image_path)) {
     FailAt(a.image_path, "not a folder of photos");

@@ -8,7 +8,9 @@
 // loss figures come down; the Gaussians' origin list comes down at a
 // densification. Embedder uses it when its rasterizer is a CudaRasterizer,
 // its decoder a CUDA one (DevicePatchDecoder: CudaDecoder or
-// CudaFeatureDecoder) and its moments float32.
+// CudaFeatureDecoder), its moments float32, and neither decoder jitter nor
+// an MSE term is on (Embedder::host_step_reason says which keeps the host
+// step). The logit margin is applied as on the host (MessageBce).
 //
 // Same results as the host step up to float rounding, except: the noise
 // and dropout layers draw their samples on the device (cuda_distortion.h:

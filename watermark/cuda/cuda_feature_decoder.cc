@@ -61,7 +61,8 @@ void CudaFeatureDecoder::ForwardDevice(const float* image_hwc, int width,
   WATERGS_CUDA_CHECK(
       feature_kernels::Im2Col(pooled_.ptr(), 3, ph, pw, k, cols_.data()));
   // Row-major conv [channels, plane] = W [channels, taps + 1] cols; in
-  // cuBLAS's column-major terms conv^T = cols^T W^T.
+  // cuBLAS's column-major terms conv^T = cols^T W^T. With TF32 allowed the
+  // bias, folded in, is rounded to TF32 too (decoder_benchmark only).
   conv_out_.Resize(1, config_.channels, ph, pw);
   const float one = 1.f, zero = 0.f;
   WATERGS_CUBLAS_CHECK(cublasSgemm(context_->cublas(), CUBLAS_OP_N, CUBLAS_OP_N,
