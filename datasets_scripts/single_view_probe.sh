@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # One point of a single-view curve (docs/history.md, "One view is enough"): embeds a trained
 # model with --eval and the given options, then reads the 6 held-out views and 12 free
-# viewpoints one by one, and the held-out PSNR. Appends one line to OUT/results.txt:
-#   LABEL held MEAN% p90 P90% agg ERRORS [per-view errors] | free ... | PSNR dB | iterations, s | options
+# viewpoints one by one, blind and as the owner (extract --raw_path), and the held-out PSNR against
+# the photos and against the raw model's renders. Appends one line to OUT/results.txt:
+#   LABEL held MEAN% p90 P90% agg ERRORS [per-view errors] | free ... | owner: held ... | free ...
+#     | PSNR vs photos dB | vs raw dB | iterations, s | options
 #   datasets_scripts/single_view_probe.sh OUT LABEL [embed options...]
 # Environment: WATERGS_BIN, SCENE (workspace, default the demo scene), RAW (trained PLY; default
 # OUT/raw/point_cloud.ply, trained here as run_demo.sh trains it), DECODER, DOWNSCALE (2).
@@ -29,23 +31,29 @@ read_views() {  # NAME [extract options]
   "$bin" extract --input_path "$run/wm.ply" --workspace_path "$scene" --downscale "$ds" \
     --decoder "$decoder" --message "$msg" --json "$run/$name.json" "$@" > "$run/$name.txt"
 }
-read_views held --split test
-read_views free --num_views 12 --seed 1
-"$bin" render --input_path "$run/wm.ply" --workspace_path "$scene" --downscale "$ds" \
-  --output_path "$run/render" --split test > "$run/render.txt" 2>&1
-python3 - "$run" "$label" "$seconds" "$*" "$out/results.txt" <<'PY'
+read_views held --split test --raw_path "$raw"
+read_views free --num_views 12 --seed 1 --raw_path "$raw"
+# PSNR of the held-out views against the photos and against the raw renders (no attacks).
+"$bin" eval --raw_path "$raw" --input_path "$run/wm.ply" --workspace_path "$scene" --downscale "$ds" \
+  --decoder "$decoder" --message "$msg" --attacks '' --image_attacks '' --lpips_weights '' \
+  --output_path "$run/eval" > "$run/eval.txt" 2>&1
+/usr/bin/python3 - "$run" "$label" "$seconds" "$*" "$out/results.txt" <<'PY'
 import json, re, sys
 run, label, seconds, args, results = sys.argv[1:]
-def views(name):
+def views(name, reading=None):
     j = json.load(open(f"{run}/{name}.json"))
+    if reading: j = j[reading]
     e = [v["bit_errors"] for v in j["views"]]
     p90 = sorted(e)[(9 * len(e) + 9) // 10 - 1]
     return e, 100 * sum(e) / len(e) / j["num_bits"], 100 * p90 / j["num_bits"], j["bit_errors"]
 h, f = views("held"), views("free")
-psnr = re.search(r"mean PSNR ([0-9.]+)", open(f"{run}/render.txt").read()).group(1)
+oh, of = views("held", "owner"), views("free", "owner")
+quality = {q["comparison"]: q["mean"]["psnr"] for q in json.load(open(f"{run}/eval.json"))["quality"]}
+psnr = quality["watermarked vs ground truth"]; vs_raw = quality["watermarked vs raw renders"]
 its = re.search(r"embed: (\d+) iterations", open(f"{run}/embed.log").read()).group(1)
 line = (f"{label:24s} held {h[1]:5.1f}% p90 {h[2]:4.1f} agg {h[3]} {h[0]} | free {f[1]:5.1f}% p90 {f[2]:4.1f} "
-        f"agg {f[3]} | PSNR {psnr} | {its} it {seconds}s | {args}")
+        f"agg {f[3]} | owner held {oh[1]:5.1f}% p90 {oh[2]:4.1f} {oh[0]} | free {of[1]:5.1f}% p90 {of[2]:4.1f} "
+        f"| PSNR {psnr:.2f} | vs raw {vs_raw:.2f} | {its} it {seconds}s | {args}")
 print(line)
 open(results, "a").write(line + "\n")
 PY

@@ -544,4 +544,13 @@ size_t Adam::BytesPerGaussian() const {
   return bytes;
 }
 
+void ScaleRates(double scale, AdamOptions* options) {
+  for (double* rate :
+       {&options->position_lr_init, &options->position_lr_final,
+        &options->feature_lr, &options->feature_rest_lr, &options->opacity_lr,
+        &options->scaling_lr, &options->rotation_lr}) {
+    *rate *= scale;
+  }
+}
+
 }  // namespace watergs

@@ -55,6 +55,10 @@ struct AdamOptions {
   bool half_moments = false;
 };
 
+// Multiplies every rate of `options` (positions, features, opacity, scales,
+// rotations) by `scale`.
+void ScaleRates(double scale, AdamOptions* options);
+
 // Each group's learning rate at 1-based `iteration` (indexed by ParamGroup):
 // Inria's exponentially decaying position rate times the scene extent, the
 // other groups constant. Shared by the CPU and CUDA optimisers.

@@ -56,6 +56,20 @@ std::string Chance(double p) {
          " &times; 10<sup>" + std::to_string(exponent) + "</sup>";
 }
 
+// The claim read as the owner (empty when it was not read so).
+std::string OwnerReadingRow(const ExtractionResult& owner) {
+  if (owner.views.empty()) return "";
+  return "<tr><th>Read as the owner</th><td>one view alone: bit error rate "
+         "mean " +
+         Printf("%.2f", 100 * owner.mean_view_ber) + "%, 90th percentile " +
+         Printf("%.2f", 100 * owner.p90_view_ber) + "%; all views: " +
+         std::to_string(owner.bit_errors) + " bits wrong, " +
+         HtmlEscape(ToString(owner.verdict)) +
+         "<br><span class=\"small\">each bit from the difference of the "
+         "decoder's outputs on the watermarked and the raw model's renders "
+         "of the same view (the owner keeps the raw model)</span></td></tr>\n";
+}
+
 // CSS class of a verdict.
 const char* VerdictClass(Verdict verdict) {
   switch (verdict) {
@@ -417,6 +431,7 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
     << claim.views.size()
     << " views, each decoded on its own (what a single screenshot of the "
        "scene reads)</td></tr>\n"
+    << OwnerReadingRow(r.claim_owner)
     << "<tr><th>p-value</th><td><b>" << Scientific(claim.p_value)
     << "</b>: if this model carried no watermark, each bit would match the "
        "claimed message only by chance, like a coin toss; the chance of "
@@ -562,7 +577,13 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
       << "</td><td class=\"" << VerdictClass(e.verdict) << "\">"
       << HtmlEscape(ToString(e.verdict)) << "</td><td class=\"num\">"
       << Printf("%.1f", 100 * e.mean_view_ber) << "% / "
-      << Printf("%.1f", 100 * e.p90_view_ber) << "%</td></tr>\n";
+      << Printf("%.1f", 100 * e.p90_view_ber) << "%"
+      << (row.owner.views.empty()
+              ? std::string()
+              : "<br><span class=\"small\">owner " +
+                    Printf("%.1f", 100 * row.owner.mean_view_ber) + "% / " +
+                    Printf("%.1f", 100 * row.owner.p90_view_ber) + "%</span>")
+      << "</td></tr>\n";
   }
   h << "</table>\n";
 

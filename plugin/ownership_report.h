@@ -73,8 +73,10 @@ struct OwnershipReport {
   // Quality and robustness on the evaluated views; suspect copies are
   // robustness rows of model "file" (after the raw model's row).
   EvaluationReport evaluation;
-  // The watermarked model read without attack: the claim.
+  // The watermarked model read without attack: the claim, and the same
+  // renders read as the owner (minus the raw model's logits, extractor.h).
   ExtractionResult claim;
+  ExtractionResult claim_owner;
   // The raw model read the same way (the contrast an owner shows).
   ExtractionResult raw;
   // Views shown in full.

@@ -127,7 +127,16 @@ OwnershipReport CollectOwnershipReport(
                             options.thresholds);
   };
   const RobustnessRow* claim = FindRow(evaluation, "watermarked", "identity");
-  r.claim = claim ? claim->extraction : extract(watermarked);
+  if (claim) {
+    r.claim = claim->extraction;
+    r.claim_owner = claim->owner;
+  } else {
+    OwnerExtraction both = ExtractWatermarkWithReference(
+        rasterizer, watermarked, raw, cameras, evaluation.view_names, decoder,
+        &message, options.background, options.thresholds);
+    r.claim = std::move(both.blind);
+    r.claim_owner = std::move(both.owner);
+  }
   const RobustnessRow* control = FindRow(evaluation, "raw", "identity");
   r.raw = control ? control->extraction : extract(raw);
 
@@ -135,13 +144,13 @@ OwnershipReport CollectOwnershipReport(
   for (size_t k = 0; k < suspects.size(); ++k) {
     r.files.push_back(DescribeFile("suspect copy", request.suspect_paths[k]));
     PsnrVsTruth psnr(views, eval_views);
-    ExtractionResult found = ExtractWatermark(
-        rasterizer, suspects[k], cameras, evaluation.view_names, decoder,
+    OwnerExtraction found = ExtractWatermarkWithReference(
+        rasterizer, suspects[k], raw, cameras, evaluation.view_names, decoder,
         &message, options.background, options.thresholds, {},
         options.ground_truth ? psnr.Observer() : DecodedViewObserver{});
     evaluation.robustness.push_back({"file", request.suspect_paths[k], "file",
-                                     suspects[k].size(), std::move(found),
-                                     psnr.Mean()});
+                                     suspects[k].size(), std::move(found.blind),
+                                     std::move(found.owner), psnr.Mean()});
   }
 
   // Views shown in full, spread evenly; their metrics are the evaluation's.

@@ -12,6 +12,7 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "distortion/distortion_layer.h"
 #include "gaussian/adam.h"
@@ -34,6 +35,9 @@ struct DeviceEmbedView {
   PixelRect decoder_crop;
   // The sampled distortion layer (null or identity: the model itself).
   const DistortionLayer* layer = nullptr;
+  // The unwatermarked model's logits of the same patch (the owner's
+  // reading, see MessageBce); null: the blind reading.
+  const std::vector<float>* reference_logits = nullptr;
 };
 
 // Figures of the forward half.

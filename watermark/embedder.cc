@@ -55,13 +55,22 @@ void AddPatch(const ImageRGB& patch, const PixelRect& rect, float scale,
 
 double MessageBce(const std::vector<float>& logits,
                   const std::vector<float>& targets, double gamma,
-                  std::vector<float>* dlogits, int* bit_errors, double margin) {
-  if (logits.size() != targets.size()) {
+                  std::vector<float>* dlogits, int* bit_errors, double margin,
+                  const std::vector<float>* reference) {
+  if (logits.size() != targets.size() ||
+      (reference && reference->size() != targets.size())) {
     Fail("message loss: the decoder reads " + std::to_string(logits.size()) +
          " bits, the message has " + std::to_string(targets.size()));
   }
   Tensor logit_tensor(1, static_cast<int>(logits.size()), 1, 1);
   logit_tensor.data = logits;
+  if (reference) {
+    for (size_t i = 0; i < logits.size(); ++i) {
+      logit_tensor.data[i] -= (*reference)[i];
+    }
+  }
+  // The bits read (before the margin moves them).
+  const std::vector<float> read = logit_tensor.data;
   for (size_t i = 0; i < logits.size(); ++i) {
     logit_tensor.data[i] -= float(margin) * (targets[i] > 0.5f ? 1.f : -1.f);
   }
@@ -70,7 +79,7 @@ double MessageBce(const std::vector<float>& logits,
   if (bit_errors) {
     *bit_errors = 0;
     for (size_t i = 0; i < targets.size(); ++i) {
-      *bit_errors += (logits[i] > 0) != (targets[i] > 0.5f);
+      *bit_errors += (read[i] > 0) != (targets[i] > 0.5f);
     }
   }
   for (float& g : grad.data) g *= static_cast<float>(gamma);
@@ -81,14 +90,14 @@ double MessageBce(const std::vector<float>& logits,
 double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                       const PixelRect& crop, const std::vector<float>& targets,
                       double gamma, ImageRGB* grad_image, int* bit_errors,
-                      double margin) {
+                      double margin, const std::vector<float>* reference) {
   ImageRGB cropped, grad;
   if (!crop.empty()) CropImage(image, crop, &cropped);
   const ImageRGB& decoded = crop.empty() ? image : cropped;
   const std::vector<float> logits = decoder.Logits(decoded);
   std::vector<float> dlogits;
   const double bce =
-      MessageBce(logits, targets, gamma, &dlogits, bit_errors, margin);
+      MessageBce(logits, targets, gamma, &dlogits, bit_errors, margin, reference);
   decoder.InputGradient(decoded, dlogits, &grad);
   AddPatch(grad,
            crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop,
@@ -200,8 +209,12 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   }
   if (!(options_.free_view_fraction >= 0 && options_.free_view_fraction <= 1))
     Fail("embed: free_view_fraction must be in [0, 1]");
-  if (options_.free_view_fraction > 0 || options_.fidelity_to_input) {
+  if (options_.free_view_fraction > 0 || options_.fidelity_to_input ||
+      options_.owner_reading) {
     input_model_ = model_;
+  }
+  if (options_.owner_reading && options_.decoder_jitter.enabled()) {
+    Fail("embed: the owner's reading takes no decoder jitter");
   }
   if (!(options_.mse_weight >= 0)) Fail("embed: mse_weight must be >= 0");
   if (options_.free_view_neighbors < 0) {
@@ -309,6 +322,10 @@ std::string Embedder::RunSignature() const {
   }
   if (options_.margin > 0) j["margin"] = options_.margin;
   if (options_.fidelity_to_input) j["fidelity_to_input"] = true;
+  if (options_.owner_reading) j["owner_reading"] = true;
+  if (options_.adam.feature_lr != AdamOptions().feature_lr) {
+    j["feature_lr"] = options_.adam.feature_lr;
+  }
   if (options_.mse_weight > 0) j["mse_weight"] = options_.mse_weight;
   j["densify"] = options_.densify;
   j["message"] = BitsToString(message_);
@@ -375,7 +392,28 @@ LossTerms Embedder::ImageLoss(const ImageRGB& rendered, const ImageRGB& truth,
   return terms;
 }
 
+std::shared_ptr<const std::vector<float>> Embedder::ReferenceLogits(
+    const IterationPlan& plan) {
+  // The decoded patch in frame pixels: a cropped render is all crop.
+  const PixelRect patch =
+      plan.render_options.rect.empty() ? plan.decoder_crop : plan.crop;
+  const bool cacheable = !plan.free_view && patch.empty();
+  if (cacheable) {
+    if (reference_logits_.empty()) reference_logits_.resize(views_.NumViews());
+    if (reference_logits_[plan.view]) return reference_logits_[plan.view];
+  }
+  const std::shared_ptr<const ImageRGB> image =
+      plan.free_view ? plan.truth : InputRender(plan.view);
+  ImageRGB cropped;
+  if (!patch.empty()) CropImage(*image, patch, &cropped);
+  auto logits = std::make_shared<const std::vector<float>>(
+      decoder_->Logits(patch.empty() ? *image : cropped));
+  if (cacheable) reference_logits_[plan.view] = logits;
+  return logits;
+}
+
 void Embedder::PlanFreeView(IterationPlan* plan) {
+  plan->free_view = true;
   const std::vector<size_t>* near =
       neighbors_.empty() ? nullptr : &neighbors_[plan->view];
   const size_t other =
@@ -441,6 +479,7 @@ EmbedStepStats Embedder::Step() {
         plan.decoder_crop.empty() ? plan.crop.height : plan.decoder_crop.height;
     plan.jitter = SampleJitter(options_.decoder_jitter, w, h, &rng_);
   }
+  if (options_.owner_reading) plan.reference_logits = ReferenceLogits(plan);
 
   const DensityEvent event = device_ ? DeviceIteration(it, plan, &stats)
                                      : HostIteration(it, plan, &stats);
@@ -496,7 +535,8 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   } else {
     stats->bce = AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
                                 options_.gamma, &grad_image_,
-                                &stats->bit_errors, options_.margin);
+                                &stats->bit_errors, options_.margin,
+                                plan.reference_logits.get());
   }
   stats->total = stats->image.total + options_.gamma * stats->bce;
   auto t4 = Clock::now();
@@ -564,6 +604,7 @@ DensityEvent Embedder::DeviceIteration(int64_t it, const IterationPlan& plan,
   view.truth = cropped ? &truth_crop_ : plan.truth.get();
   view.decoder_crop = plan.decoder_crop;
   view.layer = plan.layer;
+  view.reference_logits = plan.reference_logits.get();
   const DeviceEmbedLoss loss = device_->Forward(view, rng_);
   stats->image = loss.image;
   stats->bce = loss.bce;
@@ -606,7 +647,16 @@ double Embedder::DecodeViews(
       rasterizer_->Forward(model_, cameras[k], render_options, &image, nullptr);
     }
     for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
-    const std::vector<float> logits = decoder_->Logits(image);
+    std::vector<float> logits = decoder_->Logits(image);
+    if (options_.owner_reading) {
+      ImageRGB reference;
+      rasterizer_->Forward(input_model_, cameras[k], render_options, &reference,
+                           nullptr);
+      for (float& v : reference.data) v = std::clamp(v, 0.f, 1.f);
+      const std::vector<float> raw = decoder_->Logits(reference);
+      for (size_t i = 0; i < logits.size(); ++i) logits[i] -= raw[i];
+      ResolveOwnerTies(&logits, &message_);
+    }
     mean_ber += double(CountBitErrors(logits, message_)) / message_.size() /
                 cameras.size();
     if (sum_logits) {

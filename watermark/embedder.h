@@ -68,6 +68,11 @@ struct EmbedOptions {
   // moved by the margin towards the wrong side): a view whose logits sit
   // far from 0 keeps its bits in the next, unseen view.
   double margin = 0;
+  // The owner's reading: the message term (and the checks) read each bit
+  // from logit(render) - logit(input model's render) at the same viewpoint
+  // and patch, as `extract --raw_path` reads it; the scene's own lean per
+  // bit then costs nothing to overcome. Needs no decoder jitter.
+  bool owner_reading = false;
   // The image term's target on training cameras: the input model's render
   // there instead of the photo (free viewpoints always use the render), so
   // fine-tuning spends its changes on the message, not on refitting photos.
@@ -201,6 +206,10 @@ class Embedder {
     const DistortionLayer* layer = nullptr;
     // Applied to the (cropped) render before decoding, if jitter is on.
     JitterSample jitter;
+    // A viewpoint between two cameras (truth is then the input's render).
+    bool free_view = false;
+    // The input model's logits of the decoded patch (owner's reading).
+    std::shared_ptr<const std::vector<float>> reference_logits;
   };
 
   std::string RunSignature() const;
@@ -215,6 +224,10 @@ class Embedder {
   void PlanFreeView(IterationPlan* plan);
   // The input model's render from a training view (cached).
   std::shared_ptr<const ImageRGB> InputRender(size_t view);
+  // The input model's logits of the patch `plan` decodes (cached for whole
+  // frames of training views).
+  std::shared_ptr<const std::vector<float>> ReferenceLogits(
+      const IterationPlan& plan);
   // The image term of the options on `rendered` against `truth`.
   LossTerms ImageLoss(const ImageRGB& rendered, const ImageRGB& truth,
                       ImageRGB* grad);
@@ -245,6 +258,7 @@ class Embedder {
   // The input model, kept when free-view iterations render targets from it.
   GaussianModel input_model_;
   std::vector<std::shared_ptr<const ImageRGB>> input_renders_;
+  std::vector<std::shared_ptr<const std::vector<float>>> reference_logits_;
   double scene_extent_;
   BitDecoder* decoder_;
   Bits message_;
@@ -288,21 +302,26 @@ void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out);
 // over the bits) and sets dlogits = gamma * dBCE/dlogits; bit_errors (if not
 // null) gets the errors of the decoded bits. margin > 0 moves each logit by
 // margin towards the wrong side before the BCE (the bit errors are the
-// logits' own). Error if the lengths differ.
+// logits' own). `reference` (the unwatermarked model's logits at the same
+// view) is subtracted first: the owner's reading, bits and errors included.
+// Error if the lengths differ.
 double MessageBce(const std::vector<float>& logits,
                   const std::vector<float>& targets, double gamma,
                   std::vector<float>* dlogits, int* bit_errors,
-                  double margin = 0);
+                  double margin = 0,
+                  const std::vector<float>* reference = nullptr);
 
 // The message term on a render: returns BCE(targets, D(image[crop])) (crop
 // in image pixels, empty = all of it) and adds gamma * d BCE / d image into
 // grad_image (image's shape); bit_errors (if not null) gets the errors of
 // the decoded bits.
-// margin > 0 moves each logit by margin towards the wrong side first.
+// margin > 0 moves each logit by margin towards the wrong side first;
+// `reference` logits are subtracted before (see MessageBce).
 double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                       const PixelRect& crop, const std::vector<float>& targets,
                       double gamma, ImageRGB* grad_image, int* bit_errors,
-                      double margin = 0);
+                      double margin = 0,
+                      const std::vector<float>* reference = nullptr);
 
 // gamma * BCE(targets, D(render(model)[crop])) and its gradient w.r.t. the
 // model, the render taken over options.rect (as Step does); for checks.

@@ -88,8 +88,10 @@ struct RobustnessRow {
   std::string kind;
   // Gaussians rendered.
   size_t num_gaussians = 0;
-  // Extraction against the message.
+  // Extraction against the message: blind, and the owner's reading (each
+  // view's logits minus the raw model's at the same viewpoint, extractor.h).
   ExtractionResult extraction;
+  ExtractionResult owner;
   // Mean PSNR (dB) over the views of what was decoded (the attacked model's
   // renders, after the image attack) against the ground truth: a row whose
   // scene is gone reads as such. NaN without ground truth.

@@ -3,6 +3,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <random>
 
@@ -65,6 +66,57 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
     views.push_back(std::move(view));
   }
   return AggregateViews(std::move(views), num_bits, expected, thresholds);
+}
+
+void ResolveOwnerTies(std::vector<float>* difference, const Bits* expected) {
+  for (size_t i = 0; i < difference->size(); ++i) {
+    float& d = (*difference)[i];
+    if (std::abs(d) > kOwnerTieLogit) continue;
+    // A tie reads against the claim: no evidence for either bit.
+    d = expected ? ((*expected)[i] ? -kOwnerTieLogit : kOwnerTieLogit) : 0.f;
+  }
+}
+
+std::vector<ViewDecode> DifferenceViews(std::vector<ViewDecode> suspect,
+                                        const std::vector<ViewDecode>& reference,
+                                        const Bits* expected) {
+  if (suspect.size() != reference.size()) {
+    Fail("owner's reading: " + std::to_string(suspect.size()) +
+         " suspect views but " + std::to_string(reference.size()) +
+         " reference views");
+  }
+  for (size_t k = 0; k < suspect.size(); ++k) {
+    std::vector<float>& logits = suspect[k].logits;
+    const std::vector<float>& raw = reference[k].logits;
+    if (logits.size() != raw.size() ||
+        (expected && expected->size() != logits.size())) {
+      Fail("owner's reading: view " + suspect[k].name +
+           " has another number of logits than its reference or message");
+    }
+    for (size_t i = 0; i < logits.size(); ++i) logits[i] -= raw[i];
+    ResolveOwnerTies(&logits, expected);
+    suspect[k].bit_errors = -1;
+  }
+  return suspect;
+}
+
+OwnerExtraction ExtractWatermarkWithReference(
+    Rasterizer& rasterizer, const GaussianModel& model,
+    const GaussianModel& reference, const std::vector<RenderCamera>& cameras,
+    const std::vector<std::string>& names, BitDecoder& decoder,
+    const Bits* expected, const std::array<float, 3>& background,
+    const VerificationThresholds& thresholds, const RenderAttack& attack,
+    const DecodedViewObserver& observe) {
+  OwnerExtraction out;
+  out.blind = ExtractWatermark(rasterizer, model, cameras, names, decoder,
+                               expected, background, thresholds, attack,
+                               observe);
+  const ExtractionResult raw =
+      ExtractWatermark(rasterizer, reference, cameras, names, decoder, nullptr,
+                       background, thresholds);
+  out.owner = AggregateViews(DifferenceViews(out.blind.views, raw.views, expected),
+                             decoder.NumBits(), expected, thresholds);
+  return out;
 }
 
 std::string ExtractionToJson(const ExtractionResult& r) {

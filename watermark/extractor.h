@@ -86,6 +86,40 @@ ExtractionResult ExtractWatermark(Rasterizer& rasterizer,
                                   const RenderAttack& attack = {},
                                   const DecodedViewObserver& observe = {});
 
+// The owner's reading: each bit from logit(suspect) - logit(reference) at
+// the same viewpoint, the reference being the unwatermarked model the owner
+// keeps: the scene's own lean per bit cancels. A difference within
+// kOwnerTieLogit of zero reads neither bit: against `expected` it counts as
+// an error (so the reference itself reads no bit right and is "absent"),
+// without one it reads 0.
+constexpr float kOwnerTieLogit = 1e-3f;
+
+// Resolves the ties of a difference of logits as above, in place.
+void ResolveOwnerTies(std::vector<float>* difference, const Bits* expected);
+
+// Per view, suspect minus reference logits (same order and names), ties
+// resolved as above. Error if the lists differ in length or logit count.
+std::vector<ViewDecode> DifferenceViews(std::vector<ViewDecode> suspect,
+                                        const std::vector<ViewDecode>& reference,
+                                        const Bits* expected);
+
+// Both readings of the same renders.
+struct OwnerExtraction {
+  ExtractionResult blind;  // the suspect's logits alone (ExtractWatermark)
+  ExtractionResult owner;  // their difference from the reference's
+};
+
+// ExtractWatermark of `model`, and the owner's reading against `reference`
+// rendered from the same cameras (clean: `attack` applies to the suspect's
+// renders only, as an owner renders the raw model himself).
+OwnerExtraction ExtractWatermarkWithReference(
+    Rasterizer& rasterizer, const GaussianModel& model,
+    const GaussianModel& reference, const std::vector<RenderCamera>& cameras,
+    const std::vector<std::string>& names, BitDecoder& decoder,
+    const Bits* expected, const std::array<float, 3>& background,
+    const VerificationThresholds& thresholds, const RenderAttack& attack = {},
+    const DecodedViewObserver& observe = {});
+
 // The result as JSON text (recovered hex/bits, BER, spread, p-value, verdict,
 // per-view BER).
 std::string ExtractionToJson(const ExtractionResult& result);

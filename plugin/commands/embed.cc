@@ -60,7 +60,14 @@ struct EmbedArgs {
   std::string decoder_jitter = "none";
   double margin = kDefaultMargin;
   std::string fidelity = "photos";
+  // The reading the message term optimises: blind (the decoder's logits) or
+  // owner (their difference from the raw model's at the same viewpoint).
+  std::string reading = "blind";
   double mse_weight = 0;
+  // Multiplies every optimiser rate: Adam moves each parameter by about its
+  // rate per step whatever the loss weights, so the rates, not gamma, set
+  // how far a model travels from the input.
+  double lr_scale = 1;
   int check_free_views = 4;
   int patience = 0;
   int check_views = 4;
@@ -117,6 +124,9 @@ void Validate(const EmbedArgs& a) {
   }
   if (a.densify != "on" && a.densify != "off" && a.densify != "auto") {
     Fail("--densify: on, off or auto");
+  }
+  if (!(a.lr_scale > 0 && a.lr_scale <= 100)) {
+    Fail("--lr_scale must be in (0, 100]");
   }
   if (!(a.free_view_fraction >= 0 && a.free_view_fraction <= 1))
     Fail("--free_view_fraction must be in [0, 1]");
@@ -274,9 +284,17 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("fidelity", &a.fidelity,
              "Image target on training cameras: photos, or input (the input "
              "model's render: changes go to the message only)");
+  parser.Add("reading", &a.reading,
+             "The reading the embedding optimises: blind (the decoder's "
+             "logits, what extract reads alone) or owner (logits minus the "
+             "raw model's at the same viewpoint, what extract --raw_path "
+             "reads)");
   parser.Add("mse_weight", &a.mse_weight,
              "> 0: image loss = this x MSE (PSNR's measure) instead of L1 + "
              "D-SSIM");
+  parser.Add("lr_scale", &a.lr_scale,
+             "Multiply every optimiser rate by this (Adam moves each parameter "
+             "by about its rate a step, whatever the loss weights)");
   parser.Add("check_free_views", &a.check_free_views,
              "Free viewpoints decoded at each check too (early stopping "
              "waits for them)");
@@ -311,6 +329,7 @@ int RunEmbed(int argc, char** argv) {
   EmbedOptions options = DefaultEmbedOptions(a.iterations);
   options.gamma = a.gamma;
   options.beta = a.beta;
+  ScaleRates(a.lr_scale, &options.adam);
   options.trainable = ParseParamMask(a.mask);
   if (a.distortions != "none") {
     options.distortions = ParseDistortionList(a.distortions);
@@ -325,6 +344,10 @@ int RunEmbed(int argc, char** argv) {
     Fail("--fidelity: photos or input");
   }
   options.fidelity_to_input = a.fidelity == "input";
+  if (a.reading != "blind" && a.reading != "owner") {
+    Fail("--reading: blind or owner");
+  }
+  options.owner_reading = a.reading == "owner";
   options.mse_weight = a.mse_weight;
   options.patience = a.patience;
   options.check_every = a.check_every;

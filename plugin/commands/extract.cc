@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -63,7 +64,28 @@ SimilarityTransform ParseSceneTransform(const std::string& value) {
   }
 }
 
+// The verdict lines of one reading (`label`: "" or " (owner's reading)").
+void PrintVerdict(const ExtractionResult& r, const char* label,
+                  double present_p) {
+  std::printf(
+      "extract%s: single views (%zu): BER mean %.2f%% median %.2f%% p90 "
+      "%.2f%% (min %.2f%%, max %.2f%%)\n",
+      label, r.views.size(), 100 * r.mean_view_ber, 100 * r.median_view_ber,
+      100 * r.p90_view_ber, 100 * r.min_view_ber, 100 * r.max_view_ber);
+  std::printf(
+      "extract%s: aggregated over the %zu views (mean logits): BER %.2f%% (%d "
+      "of %zu bits)\n",
+      label, r.views.size(), 100 * r.ber, r.bit_errors, r.recovered.size());
+  std::printf(
+      "extract%s: p-value %.3g (chance of this many matching bits from an "
+      "unmarked model)\n",
+      label, r.p_value);
+  std::printf("extract%s: verdict: %s (false-positive rate %.0e)\n", label,
+              ToString(r.verdict).c_str(), present_p);
+}
+
 int RunExtract(int argc, char** argv) {
+  std::string raw_path;
   std::string input_path, decoder_path, message, key_option, json_path;
   std::string scene_transform, image_attack;
   std::string background = "0,0,0";
@@ -93,6 +115,11 @@ int RunExtract(int argc, char** argv) {
   parser.Add("downscale", &workspace_options.downscale,
              "Image downscale: 1,2,4,8");
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  parser.Add("raw_path", &raw_path,
+             "The unwatermarked model (the owner's): also read each bit from "
+             "the difference of the suspect's logits and this model's at the "
+             "same viewpoint (the owner's reading, printed beside the blind "
+             "one)");
   parser.Add("message", &message,
              std::string("Claimed message: ") + kMessageFormats);
   parser.Add("key", &key_option, kKeyHelp);
@@ -135,6 +162,14 @@ int RunExtract(int argc, char** argv) {
   if (!json_path.empty()) CheckOutputFile(json_path);
 
   const ModelData ply = ReadModelFile(input_path);
+  ModelData raw;
+  if (!raw_path.empty()) {
+    if (SamePath(raw_path, input_path)) {
+      Fail("extract: --raw_path is the --input_path (the owner's reading "
+           "compares two models)");
+    }
+    raw = ReadModelFile(raw_path);
+  }
   const std::unique_ptr<BitDecoder> decoder =
       LoadBitDecoder(decoder_path, parser.device());
   Bits expected;
@@ -177,10 +212,20 @@ int RunExtract(int argc, char** argv) {
   }
   VerificationThresholds thresholds;
   thresholds.present_p = present_p;
-  const ExtractionResult r =
-      ExtractWatermark(*MakeRasterizer(parser.device()), ply.model, cameras,
-                       names, *decoder, expected.empty() ? nullptr : &expected,
-                       ParseBackground(background), thresholds, attack);
+  const std::unique_ptr<Rasterizer> rasterizer =
+      MakeRasterizer(parser.device());
+  const Bits* claim = expected.empty() ? nullptr : &expected;
+  OwnerExtraction both;
+  if (raw_path.empty()) {
+    both.blind = ExtractWatermark(*rasterizer, ply.model, cameras, names,
+                                  *decoder, claim, ParseBackground(background),
+                                  thresholds, attack);
+  } else {
+    both = ExtractWatermarkWithReference(
+        *rasterizer, ply.model, raw.model, cameras, names, *decoder, claim,
+        ParseBackground(background), thresholds, attack);
+  }
+  const ExtractionResult& r = both.blind;
 
   std::printf("extract: %zu views of %s (%zu Gaussians)\n", r.views.size(),
               input_path.c_str(), ply.model.size());
@@ -194,26 +239,28 @@ int RunExtract(int argc, char** argv) {
                 BitsToHex(ApplyKey(r.recovered, key)).c_str(),
                 KeyFingerprint(key).c_str());
   }
+  if (!raw_path.empty()) {
+    std::printf("extract (owner's reading, minus %s): recovered hex %s\n",
+                raw_path.c_str(), BitsToHex(both.owner.recovered).c_str());
+  }
   if (r.has_expected) {
     std::printf("extract: expected bits         %s\n",
                 BitsToString(r.expected).c_str());
-    std::printf(
-        "extract: single views (%zu): BER mean %.2f%% median %.2f%% p90 "
-        "%.2f%% (min %.2f%%, max %.2f%%)\n",
-        r.views.size(), 100 * r.mean_view_ber, 100 * r.median_view_ber,
-        100 * r.p90_view_ber, 100 * r.min_view_ber, 100 * r.max_view_ber);
-    std::printf(
-        "extract: aggregated over the %zu views (mean logits): BER %.2f%% (%d "
-        "of %zu bits)\n",
-        r.views.size(), 100 * r.ber, r.bit_errors, r.recovered.size());
-    std::printf(
-        "extract: p-value %.3g (chance of this many matching bits from an "
-        "unmarked model)\n",
-        r.p_value);
-    std::printf("extract: verdict: %s (false-positive rate %.0e)\n",
-                ToString(r.verdict).c_str(), present_p);
+    PrintVerdict(r, "", present_p);
+    if (!raw_path.empty()) {
+      PrintVerdict(both.owner, " (owner's reading)", present_p);
+    }
   }
-  if (!json_path.empty()) AtomicWriteFile(json_path, ExtractionToJson(r));
+  if (!json_path.empty()) {
+    std::string text = ExtractionToJson(r);
+    if (!raw_path.empty()) {
+      nlohmann::json j = nlohmann::json::parse(text);
+      j["owner"] = nlohmann::json::parse(ExtractionToJson(both.owner));
+      j["owner"]["raw_path"] = raw_path;
+      text = j.dump(2) + "\n";
+    }
+    AtomicWriteFile(json_path, text);
+  }
   return 0;
 }
 

@@ -33,8 +33,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The views' logits of an extract/detect JSON file.
-NullGroup ReadLogitsFile(const std::string& path, int num_bits) {
+// The views' logits of an extract/detect JSON file; `owner`: those of the
+// owner's reading (extract --raw_path), each view minus the raw model's.
+NullGroup ReadLogitsFile(const std::string& path, int num_bits, bool owner) {
   std::ifstream in(path);
   if (!in) FailAt(path, "cannot open the logits file");
   nlohmann::json j;
@@ -42,6 +43,12 @@ NullGroup ReadLogitsFile(const std::string& path, int num_bits) {
     j = nlohmann::json::parse(in);
   } catch (const std::exception& e) {
     FailAt(path, std::string("not JSON: ") + e.what());
+  }
+  if (owner) {
+    if (!j.is_object() || !j.contains("owner") || !j["owner"].is_object()) {
+      FailAt(path, "no \"owner\" reading: expected extract --raw_path --json");
+    }
+    j = j["owner"];
   }
   if (!j.is_object() || !j.contains("views") || !j["views"].is_array()) {
     FailAt(path, "no \"views\" array: expected extract or detect --json");
@@ -106,6 +113,7 @@ std::vector<int> ParseSizes(const std::string& text) {
 int RunNullCalibration(int argc, char** argv) {
   std::string decoder_path, logits_list, image_list, aggregate = "1,6";
   std::string message = "text:WGS-26", markdown_path, json_path;
+  std::string reading = "blind";
   int crop = 128, crops = 2000, keys = 1000, single_keys = 3;
   int aggregates = 2000, seed = 0, num_threads = 0;
   OptionParser parser(
@@ -119,6 +127,10 @@ int RunNullCalibration(int argc, char** argv) {
   parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
   parser.Add("logits", &logits_list,
              "extract/detect --json files of unmarked views, comma-separated");
+  parser.Add("reading", &reading,
+             "Logits read from the files: blind (each view's own) or owner "
+             "(the owner's reading of extract --raw_path: minus the raw "
+             "model's)");
   parser.Add("image_path", &image_list,
              "Folders of unmarked photos, comma-separated (random crops)");
   parser.Add("crop", &crop, "Side of the photo crops");
@@ -140,6 +152,9 @@ int RunNullCalibration(int argc, char** argv) {
   if (logits_list.empty() && image_list.empty()) {
     Fail("null_calibration: give --logits and/or --image_path");
   }
+  if (reading != "blind" && reading != "owner") {
+    Fail("null_calibration: --reading blind or owner");
+  }
   if (crop < 16 || crops < 1) Fail("--crop must be >= 16 and --crops >= 1");
   if (keys < 1 || single_keys < 0 || single_keys > keys) {
     Fail("--keys must be >= 1 and --single_keys in [0, --keys]");
@@ -159,7 +174,7 @@ int RunNullCalibration(int argc, char** argv) {
   const Bits bits = ParseMessage(message, num_bits);
   std::vector<NullGroup> groups;
   for (const std::string& path : SplitList(logits_list)) {
-    groups.push_back(ReadLogitsFile(path, num_bits));
+    groups.push_back(ReadLogitsFile(path, num_bits, reading == "owner"));
   }
   for (const std::string& folder : SplitList(image_list)) {
     groups.push_back(

@@ -23,6 +23,7 @@
 #include "tests/common/cuda_test.h"
 #include "tests/common/embed_scene.h"
 #include "tests/common/look_at.h"
+#include "watermark/extractor.h"
 #include "watermark/feature_decoder.h"
 #include "watermark/hidden_model.h"
 #include "watermark/network_file.h"
@@ -235,6 +236,97 @@ TEST(MessageBce, MarginShiftsTheLossButNotTheBitErrors) {
   std::vector<float> plain;
   MessageBce(logits, targets, gamma, &plain, nullptr);
   EXPECT_LT(std::abs(plain[0]), std::abs(dlogits[0]));
+}
+
+// The owner's reading subtracts the raw model's logits first: the loss,
+// gradient and bit errors equal the blind ones on the difference.
+TEST(MessageBce, ReferenceLogitsAreSubtractedBeforeTheMargin) {
+  const std::vector<float> logits = {2.f, -1.f, 0.5f, -4.f};
+  const std::vector<float> reference = {3.f, -2.f, -0.5f, -6.f};
+  const std::vector<float> targets = {1.f, 0.f, 0.f, 1.f};
+  std::vector<float> difference(logits.size());
+  for (size_t i = 0; i < logits.size(); ++i) {
+    difference[i] = logits[i] - reference[i];  // -1, 1, 1, 2
+  }
+  std::vector<float> owner, blind;
+  int owner_errors = -1, blind_errors = -1;
+  const double owner_bce = MessageBce(logits, targets, 0.5, &owner,
+                                      &owner_errors, 2.0, &reference);
+  const double blind_bce =
+      MessageBce(difference, targets, 0.5, &blind, &blind_errors, 2.0);
+  EXPECT_DOUBLE_EQ(owner_bce, blind_bce);
+  EXPECT_EQ(owner, blind);
+  EXPECT_EQ(owner_errors, 3);  // -1 -> 0 (want 1), 1 -> 1 (want 0) twice
+  // The blind read of the same logits errs elsewhere: the reference matters.
+  int plain_errors = -1;
+  MessageBce(logits, targets, 0.5, &blind, &plain_errors, 2.0);
+  EXPECT_EQ(plain_errors, 2);
+  const std::vector<float> short_reference = {1.f};
+  EXPECT_THROW(MessageBce(logits, targets, 0.5, &owner, nullptr, 0,
+                          &short_reference),
+               Error);
+}
+
+// Embedding for the owner's reading writes the message into the difference
+// from the input model: the owner's BER falls far below chance, and the
+// check (which reads as the owner) agrees with a direct read.
+TEST(Embedder, OwnerReadingEmbedsTheDifferenceFromTheInput) {
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  Decoder decoder(&net);
+  const Bits message = RandomBits(16, 9);
+  EmbedOptions o = DefaultEmbedOptions(40);
+  o.crop_size = 0;
+  o.gamma = 3;
+  o.densify = false;
+  o.distortions = ParseDistortionList("identity,dropout:0.1");
+  o.adam.feature_lr = 0.02;
+  o.seed = 2;
+  o.owner_reading = true;
+  o.margin = 0.5;
+  Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder, message,
+                    MakeCpuRasterizer());
+  const CheckResult before = embedder.Check(s.train);
+  // Before any step the model is its own reference: every difference is a
+  // tie, which reads against the claim (extractor.h): all bits wrong.
+  EXPECT_EQ(before.mean_ber, 1.0);
+  embedder.Run();
+  const CheckResult after = embedder.Check(s.train);
+  // Direct owner read of the training views.
+  auto rasterizer = MakeCpuRasterizer();
+  double direct = 0;
+  for (size_t v : s.train) {
+    ImageRGB a, b;
+    rasterizer->Forward(embedder.model(), s.views.Camera(v), {}, &a, nullptr);
+    rasterizer->Forward(s.model, s.views.Camera(v), {}, &b, nullptr);
+    for (float& x : a.data) x = std::clamp(x, 0.f, 1.f);
+    for (float& x : b.data) x = std::clamp(x, 0.f, 1.f);
+    std::vector<float> la = decoder.Logits(a);
+    const std::vector<float> lb = decoder.Logits(b);
+    int errors = 0;
+    for (size_t i = 0; i < la.size(); ++i) {
+      const float d = la[i] - lb[i];
+      errors += std::abs(d) <= kOwnerTieLogit || (d > 0) != message[i];
+    }
+    direct += double(errors) / message.size() / s.train.size();
+  }
+  EXPECT_NEAR(after.mean_ber, direct, 1e-12);
+  EXPECT_LT(after.mean_ber, 0.2);
+  EXPECT_GT(after.psnr, 20.0);
+}
+
+TEST(Embedder, OwnerReadingRefusesDecoderJitter) {
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  Decoder decoder(&net);
+  EmbedOptions o = DefaultEmbedOptions(4);
+  o.densify = false;
+  o.owner_reading = true;
+  o.decoder_jitter.max_shift = 2;
+  EXPECT_THROW(Embedder(o, s.views, s.train, s.model, 3.0, &decoder,
+                        RandomBits(16, 9), MakeCpuRasterizer()),
+               Error);
 }
 
 TEST(Embedder, EmbeddingLowersTheBitErrorRate) {

@@ -158,6 +158,76 @@ TEST(Extractor, RawModelDoesNotClaimTheWatermark) {
   }
 }
 
+// The owner's reading is the blind aggregation applied to suspect minus
+// reference logits per view, recomputed here from renders of both models;
+// the blind result of the same call equals ExtractWatermark's.
+TEST(Extractor, OwnerReadingDecodesTheDifferenceFromTheReference) {
+  ExtractScene s;
+  Decoder decoder(&s.net);
+  auto rasterizer = MakeCpuRasterizer();
+  GaussianModel suspect = s.model;
+  for (float& c : suspect.sh_dc) c += 0.05f;
+  Bits expected(48);
+  for (int i = 0; i < 48; ++i) expected[i] = (i * 5) % 3 == 0;
+  const OwnerExtraction both = ExtractWatermarkWithReference(
+      *rasterizer, suspect, s.model, s.cameras, s.names, decoder, &expected,
+      {0, 0, 0}, VerificationThresholds{});
+  const ExtractionResult blind =
+      ExtractWatermark(*rasterizer, suspect, s.cameras, s.names, decoder,
+                       &expected, {0, 0, 0}, VerificationThresholds{});
+  EXPECT_EQ(both.blind.recovered, blind.recovered);
+  EXPECT_EQ(both.blind.bit_errors, blind.bit_errors);
+  ASSERT_EQ(both.owner.views.size(), s.cameras.size());
+  std::vector<double> sum(48, 0);
+  for (size_t v = 0; v < s.cameras.size(); ++v) {
+    ImageRGB a, b;
+    rasterizer->Forward(suspect, s.cameras[v], RenderOptions{}, &a, nullptr);
+    rasterizer->Forward(s.model, s.cameras[v], RenderOptions{}, &b, nullptr);
+    for (float& x : a.data) x = std::clamp(x, 0.f, 1.f);
+    for (float& x : b.data) x = std::clamp(x, 0.f, 1.f);
+    const std::vector<float> la = decoder.Logits(a), lb = decoder.Logits(b);
+    int errors = 0;
+    for (int i = 0; i < 48; ++i) {
+      const double d = double(la[i]) - lb[i];
+      ASSERT_GT(std::abs(d), kOwnerTieLogit) << "a tie in the fixture";
+      EXPECT_NEAR(both.owner.views[v].logits[i], d, 1e-5) << v << " " << i;
+      sum[i] += d;
+      errors += (d > 0) != (expected[i] == 1);
+    }
+    EXPECT_EQ(both.owner.views[v].bit_errors, errors) << v;
+  }
+  for (int i = 0; i < 48; ++i) {
+    EXPECT_EQ(both.owner.recovered[i], sum[i] > 0 ? 1 : 0) << i;
+  }
+  // Not the blind read: the reference's lean is gone.
+  EXPECT_NE(both.owner.mean_logits, both.blind.mean_logits);
+}
+
+// The raw model read as the owner against itself: every difference is a tie,
+// which reads against the claim whatever the claim: BER 100%, "absent".
+TEST(Extractor, OwnerReadingOfTheReferenceItselfIsAbsent) {
+  ExtractScene s;
+  Decoder decoder(&s.net);
+  auto rasterizer = MakeCpuRasterizer();
+  std::mt19937 rng(8);
+  for (int trial = 0; trial < 3; ++trial) {
+    Bits claimed(48);
+    for (auto& b : claimed) b = rng() & 1;
+    const OwnerExtraction both = ExtractWatermarkWithReference(
+        *rasterizer, s.model, s.model, s.cameras, s.names, decoder, &claimed,
+        {0, 0, 0}, VerificationThresholds{});
+    EXPECT_EQ(both.owner.bit_errors, 48);
+    EXPECT_DOUBLE_EQ(both.owner.min_view_ber, 1.0);
+    EXPECT_EQ(both.owner.verdict, Verdict::kAbsent);
+  }
+  // Without a claim a tie reads 0.
+  std::vector<float> tie = {0.f, 5e-4f, -2.f};
+  ResolveOwnerTies(&tie, nullptr);
+  EXPECT_EQ(tie, (std::vector<float>{0.f, 0.f, -2.f}));
+  std::vector<ViewDecode> one(1), none;
+  EXPECT_THROW(DifferenceViews(one, none, nullptr), Error);
+}
+
 TEST(Extractor, RefusesAnExpectedMessageOfTheWrongLength) {
   ExtractScene s;
   Decoder decoder(&s.net);

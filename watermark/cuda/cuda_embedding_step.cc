@@ -121,7 +121,8 @@ DeviceEmbedLoss CudaEmbeddingStep::Forward(const DeviceEmbedView& view,
       decoder_->LogitsDevicePatch(image_.data(), rect.width, crop);
   std::vector<float> dlogits;
   out.bce =
-      MessageBce(logits, targets_, gamma_, &dlogits, &out.bit_errors, margin_);
+      MessageBce(logits, targets_, gamma_, &dlogits, &out.bit_errors, margin_,
+                 view.reference_logits);
   decoder_->AddInputGradientDevicePatch(dlogits, grad_image_.data(), rect.width,
                                         crop);
   out.decoder_s = StageSeconds(&t);
