@@ -62,8 +62,8 @@ std::string OwnerReadingRow(const ExtractionResult& owner) {
   return "<tr><th>Read as the owner</th><td>one view alone: bit error rate "
          "mean " +
          Printf("%.2f", 100 * owner.mean_view_ber) + "%, 90th percentile " +
-         Printf("%.2f", 100 * owner.p90_view_ber) + "%; all views: " +
-         std::to_string(owner.bit_errors) + " bits wrong, " +
+         Printf("%.2f", 100 * owner.p90_view_ber) +
+         "%; all views: " + std::to_string(owner.bit_errors) + " bits wrong, " +
          HtmlEscape(ToString(owner.verdict)) +
          "<br><span class=\"small\">each bit from the difference of the "
          "decoder's outputs on the watermarked and the raw model's renders "
@@ -431,8 +431,8 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
     << claim.views.size()
     << " views, each decoded on its own (what a single screenshot of the "
        "scene reads)</td></tr>\n"
-    << OwnerReadingRow(r.claim_owner)
-    << "<tr><th>p-value</th><td><b>" << Scientific(claim.p_value)
+    << OwnerReadingRow(r.claim_owner) << "<tr><th>p-value</th><td><b>"
+    << Scientific(claim.p_value)
     << "</b>: if this model carried no watermark, each bit would match the "
        "claimed message only by chance, like a coin toss; the chance of "
     << bits - claim.bit_errors << " or more of " << bits

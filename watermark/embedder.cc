@@ -96,8 +96,8 @@ double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
   const ImageRGB& decoded = crop.empty() ? image : cropped;
   const std::vector<float> logits = decoder.Logits(decoded);
   std::vector<float> dlogits;
-  const double bce =
-      MessageBce(logits, targets, gamma, &dlogits, bit_errors, margin, reference);
+  const double bce = MessageBce(logits, targets, gamma, &dlogits, bit_errors,
+                                margin, reference);
   decoder.InputGradient(decoded, dlogits, &grad);
   AddPatch(grad,
            crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop,
@@ -260,15 +260,13 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   auto* cuda_rasterizer = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
   // Either CUDA decoder (HiDDeN or random-feature) reads the render in place.
   auto* cuda_decoder = dynamic_cast<DevicePatchDecoder*>(decoder_);
-  // Decoder jitter, the MSE term and the compact moments have no device
-  // twin: those runs keep the host step (renders and decoder on the GPU).
+  // Decoder jitter and the compact moments have no device twin: those runs
+  // keep the host step (renders and decoder on the GPU).
   if (cuda_rasterizer && cuda_decoder) {
     if (options_.adam.compact_moments || options_.adam.half_moments) {
       host_step_reason_ = "8-bit or bfloat16 moments have no CUDA Adam";
     } else if (options_.decoder_jitter.enabled()) {
       host_step_reason_ = "decoder jitter runs on the host";
-    } else if (options_.mse_weight != 0) {
-      host_step_reason_ = "the MSE term runs on the host";
     }
   }
   if (cuda_rasterizer && cuda_decoder && host_step_reason_.empty()) {
@@ -276,7 +274,7 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
       return std::make_unique<CudaEmbeddingStep>(
           cuda_rasterizer, cuda_decoder, options_.adam, scene_extent_,
           options_.beta, options_.gamma, options_.margin, targets_, host_model,
-          host_adam);
+          host_adam, options_.mse_weight);
     });
   }
 #endif
@@ -533,10 +531,10 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   if (options_.decoder_jitter.enabled()) {
     stats->bce = JitteredMessageLoss(plan, stats);
   } else {
-    stats->bce = AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
-                                options_.gamma, &grad_image_,
-                                &stats->bit_errors, options_.margin,
-                                plan.reference_logits.get());
+    stats->bce =
+        AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
+                       options_.gamma, &grad_image_, &stats->bit_errors,
+                       options_.margin, plan.reference_logits.get());
   }
   stats->total = stats->image.total + options_.gamma * stats->bce;
   auto t4 = Clock::now();

@@ -218,10 +218,9 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
     std::snprintf(status, sizeof(status), "%s BER %.1f%%", attack.c_str(),
                   100 * row.extraction.ber);
     step(done, status);
-    report.robustness.push_back({std::move(model), std::move(attack),
-                                 std::move(kind), gaussians,
-                                 std::move(row.extraction), std::move(owner),
-                                 row.psnr});
+    report.robustness.push_back(
+        {std::move(model), std::move(attack), std::move(kind), gaussians,
+         std::move(row.extraction), std::move(owner), row.psnr});
   };
   // The cameras an attack that renders the scene (prune_significance) sees:
   // the views not evaluated, the training split when the evaluated ones are

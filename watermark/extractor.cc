@@ -77,9 +77,9 @@ void ResolveOwnerTies(std::vector<float>* difference, const Bits* expected) {
   }
 }
 
-std::vector<ViewDecode> DifferenceViews(std::vector<ViewDecode> suspect,
-                                        const std::vector<ViewDecode>& reference,
-                                        const Bits* expected) {
+std::vector<ViewDecode> DifferenceViews(
+    std::vector<ViewDecode> suspect, const std::vector<ViewDecode>& reference,
+    const Bits* expected) {
   if (suspect.size() != reference.size()) {
     Fail("owner's reading: " + std::to_string(suspect.size()) +
          " suspect views but " + std::to_string(reference.size()) +
@@ -108,14 +108,15 @@ OwnerExtraction ExtractWatermarkWithReference(
     const VerificationThresholds& thresholds, const RenderAttack& attack,
     const DecodedViewObserver& observe) {
   OwnerExtraction out;
-  out.blind = ExtractWatermark(rasterizer, model, cameras, names, decoder,
-                               expected, background, thresholds, attack,
-                               observe);
+  out.blind =
+      ExtractWatermark(rasterizer, model, cameras, names, decoder, expected,
+                       background, thresholds, attack, observe);
   const ExtractionResult raw =
       ExtractWatermark(rasterizer, reference, cameras, names, decoder, nullptr,
                        background, thresholds);
-  out.owner = AggregateViews(DifferenceViews(out.blind.views, raw.views, expected),
-                             decoder.NumBits(), expected, thresholds);
+  out.owner =
+      AggregateViews(DifferenceViews(out.blind.views, raw.views, expected),
+                     decoder.NumBits(), expected, thresholds);
   return out;
 }
 

@@ -99,9 +99,9 @@ void ResolveOwnerTies(std::vector<float>* difference, const Bits* expected);
 
 // Per view, suspect minus reference logits (same order and names), ties
 // resolved as above. Error if the lists differ in length or logit count.
-std::vector<ViewDecode> DifferenceViews(std::vector<ViewDecode> suspect,
-                                        const std::vector<ViewDecode>& reference,
-                                        const Bits* expected);
+std::vector<ViewDecode> DifferenceViews(
+    std::vector<ViewDecode> suspect, const std::vector<ViewDecode>& reference,
+    const Bits* expected);
 
 // Both readings of the same renders.
 struct OwnerExtraction {

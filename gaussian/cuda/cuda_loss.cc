@@ -73,6 +73,23 @@ double CudaTrainingLoss::L1Device(const float* x, const float* y, size_t count,
   return MeanOfMapPlane(count);
 }
 
+LossTerms CudaTrainingLoss::MseDevice(const float* x, const float* y,
+                                      size_t count, double weight,
+                                      float* grad) {
+  LossTerms terms;
+  if (count == 0) return terms;
+  if (scratch_.size() < 9 * count) scratch_.Resize(9 * count);
+  // The L1 column first (the host term reports it too), then the squares.
+  WATERGS_CUDA_CHECK(cuda_loss::LaunchL1(
+      x, y, count, 0.f, scratch_.data() + 8 * count, nullptr, nullptr));
+  terms.l1 = MeanOfMapPlane(count);
+  WATERGS_CUDA_CHECK(cuda_loss::LaunchSquaredError(
+      x, y, count, static_cast<float>(2 * weight / double(count)),
+      scratch_.data() + 8 * count, grad, nullptr));
+  terms.total = weight * MeanOfMapPlane(count);
+  return terms;
+}
+
 double CudaTrainingLoss::SsimDevice(const float* x, const float* y, int width,
                                     int height, int channels, float* grad) {
   if (width <= 0 || height <= 0 || channels <= 0) return 1.0;

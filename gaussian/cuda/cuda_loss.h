@@ -33,6 +33,11 @@ class CudaTrainingLoss {
                     int channels, float* grad);
   // As L1Interleaved on `count` device values.
   double L1Device(const float* x, const float* y, size_t count, float* grad);
+  // weight * mean (x - y)^2 over `count` device values (the embedder's MSE
+  // term); grad (device, nullable) is overwritten with its derivative,
+  // 2 weight (x - y) / count. LossTerms as the host term fills them.
+  LossTerms MseDevice(const float* x, const float* y, size_t count,
+                      double weight, float* grad);
 
  private:
   // Mean of the `count` floats of plane 8 of scratch_ (deterministic order).

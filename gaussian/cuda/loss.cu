@@ -41,6 +41,16 @@ __global__ void L1Kernel(const float* x, const float* y, size_t count,
   if (grad) grad[j] = d > 0 ? inv_count : (d < 0 ? -inv_count : 0.f);
 }
 
+__global__ void SquaredErrorKernel(const float* x, const float* y, size_t count,
+                                   float grad_scale, float* sq_diff,
+                                   float* grad) {
+  const size_t j = blockIdx.x * size_t(blockDim.x) + threadIdx.x;
+  if (j >= count) return;
+  const float d = Sub(x[j], y[j]);
+  sq_diff[j] = Mul(d, d);
+  if (grad) grad[j] = Mul(grad_scale, d);
+}
+
 // Horizontal blur of `planes` planes of height x len values, taps `stride`
 // values apart, zero padded; plane p of the input is produced by load(p, j).
 // CPU order: out = 0, then out += g[k] * in for k = 0..10 (padding adds +0).
@@ -196,6 +206,15 @@ cudaError_t LaunchL1(const float* x, const float* y, size_t count,
   if (count == 0) return cudaSuccess;
   L1Kernel<<<Blocks(count), kThreads, 0, stream>>>(x, y, count, inv_count,
                                                    abs_diff, grad);
+  return cudaGetLastError();
+}
+
+cudaError_t LaunchSquaredError(const float* x, const float* y, size_t count,
+                               float grad_scale, float* sq_diff, float* grad,
+                               cudaStream_t stream) {
+  if (count == 0) return cudaSuccess;
+  SquaredErrorKernel<<<Blocks(count), kThreads, 0, stream>>>(
+      x, y, count, grad_scale, sq_diff, grad);
   return cudaGetLastError();
 }
 

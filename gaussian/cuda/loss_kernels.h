@@ -31,6 +31,12 @@ cudaError_t LaunchL1(const float* x, const float* y, size_t count,
                      float inv_count, float* abs_diff, float* grad,
                      cudaStream_t stream);
 
+// (x - y)^2 per value into sq_diff (count floats); grad (nullable) gets
+// grad_scale * (x - y), as the embedder's host MSE term writes it.
+cudaError_t LaunchSquaredError(const float* x, const float* y, size_t count,
+                               float grad_scale, float* sq_diff, float* grad,
+                               cudaStream_t stream);
+
 // SSIM map of x against y (height rows of width * channels values) into
 // scratch plane 8; with want_adjoint also the three adjoint planes (dS/dmu_x,
 // dS/dE[x^2], dS/dE[xy], times inv_count) into planes 5-7. `scratch` holds

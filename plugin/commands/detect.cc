@@ -19,11 +19,16 @@
 #include <string>
 #include <vector>
 
+#include "gaussian/device.h"
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
+#include "gaussian/model_io.h"
 #include "gaussian/text_util.h"
 #include "plugin/command.h"
+#include "plugin/image_registration.h"
 #include "plugin/option_parser.h"
+#include "plugin/training_views.h"
+#include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/extractor.h"
 #include "watermark/image_attacks.h"
@@ -100,7 +105,49 @@ std::string Percent(double fraction) {
   return text;
 }
 
+// The owner's reading of images without a pose: each image registered to
+// the workspace, the raw model rendered at the recovered camera and decoded;
+// per image, its logits minus the render's (images that do not register are
+// left out, each with a one-line reason).
+struct OwnerImages {
+  std::vector<ViewDecode> views;  // differences, registered images only
+  std::vector<Registration> registrations;  // per image
+};
+
+OwnerImages ReadAsOwner(const std::vector<std::string>& files,
+                        const std::vector<ImageRGB>& images,
+                        const std::vector<ViewDecode>& decoded,
+                        const std::string& raw_path,
+                        WorkspaceOptions workspace_options, Device device,
+                        BitDecoder& decoder, const Bits* expected) {
+  const ModelData raw = ReadModelFile(raw_path);
+  const Workspace workspace = Workspace::Open(workspace_options);
+  const WorkspaceViews views(workspace);
+  const ImageRegistrar registrar(workspace, views);
+  const std::unique_ptr<Rasterizer> rasterizer = MakeRasterizer(device);
+  OwnerImages out;
+  RenderOptions options;
+  for (size_t k = 0; k < files.size(); ++k) {
+    Registration r = registrar.Register(images[k]);
+    if (r.registered) {
+      ImageRGB render;
+      rasterizer->Forward(raw.model, r.camera, options, &render, nullptr);
+      for (float& v : render.data) v = std::clamp(v, 0.f, 1.f);
+      ViewDecode reference;
+      reference.name = files[k];
+      reference.logits = decoder.Logits(render);
+      std::vector<ViewDecode> one =
+          DifferenceViews({decoded[k]}, {reference}, expected);
+      out.views.push_back(std::move(one[0]));
+    }
+    out.registrations.push_back(std::move(r));
+  }
+  return out;
+}
+
 int RunDetect(int argc, char** argv) {
+  std::string raw_path;
+  WorkspaceOptions workspace_options;
   std::string image_path, decoder_path, message, key_option, json_path;
   double present_p = VerificationThresholds().present_p;
   int max_side = 0;
@@ -133,9 +180,28 @@ int RunDetect(int argc, char** argv) {
              "Resize each image to this width (aspect kept) before decoding: "
              "the width of the renders the model was watermarked at, for "
              "copies shared smaller or larger (0 = decode as is)");
+  parser.Add("raw_path", &raw_path,
+             "The unwatermarked model (the owner's): register each image to "
+             "--workspace_path, render this model at the recovered camera and "
+             "also read each bit from the difference (the owner's reading)");
+  parser.Add("workspace_path", &workspace_options.workspace_path,
+             "COLMAP workspace the images are registered to (with "
+             "--raw_path)");
+  parser.Add("sparse_path", &workspace_options.input_path,
+             "Sparse model folder (default <workspace>/sparse/0)");
+  parser.Add("workspace_images", &workspace_options.image_path,
+             "The workspace's photos (default <workspace>/images)");
+  parser.Add("downscale", &workspace_options.downscale,
+             "Workspace image downscale: 1,2,4,8 (the scale the model was "
+             "trained at)");
   parser.Add("num_threads", &num_threads, "Threads (0 = all cores)");
   parser.Add("json", &json_path, "Write the result as JSON to this file");
   if (!parser.Parse(argc, argv)) return 0;
+  if (raw_path.empty() != workspace_options.workspace_path.empty()) {
+    Fail(
+        "detect: --raw_path and --workspace_path go together (the owner's "
+        "reading registers each image to the workspace)");
+  }
   if (!(present_p > 0 && present_p < 0.01)) {
     Fail("--false_positive_rate must be in (0, 0.01)");
   }
@@ -162,6 +228,7 @@ int RunDetect(int argc, char** argv) {
   // fails in one line.
   std::vector<ViewDecode> views;
   std::vector<std::pair<int, int>> sizes;
+  std::vector<ImageRGB> decoded_images;  // kept for the owner's reading
   for (const std::string& path : files) {
     ImageRGB image = LoadImage(path, max_side);
     if (decode_width > 0 && image.width != decode_width) {
@@ -180,6 +247,13 @@ int RunDetect(int argc, char** argv) {
     }
     sizes.emplace_back(image.width, image.height);
     views.push_back(std::move(view));
+    if (!raw_path.empty()) decoded_images.push_back(std::move(image));
+  }
+  OwnerImages owner;
+  if (!raw_path.empty()) {
+    owner = ReadAsOwner(files, decoded_images, views, raw_path,
+                        workspace_options, parser.device(), *decoder,
+                        expected.empty() ? nullptr : &expected);
   }
   std::printf("detect: %zu images, %d-bit decoder %s\n", files.size(), num_bits,
               decoder_path.c_str());
@@ -226,6 +300,53 @@ int RunDetect(int argc, char** argv) {
     std::printf("detect: verdict: %s (false-positive rate %.0e)\n",
                 ToString(r.verdict).c_str(), present_p);
   }
+  ExtractionResult owned;
+  if (!raw_path.empty()) {
+    for (size_t k = 0; k < files.size(); ++k) {
+      const Registration& g = owner.registrations[k];
+      if (!g.registered) {
+        std::printf("detect (owner's reading): %s: not registered: %s\n",
+                    files[k].c_str(), g.why.c_str());
+      }
+    }
+    if (owner.views.empty()) {
+      std::printf("detect (owner's reading): no image registered\n");
+    } else {
+      size_t next = 0;
+      for (size_t k = 0; k < files.size(); ++k) {
+        const Registration& g = owner.registrations[k];
+        if (!g.registered || expected.empty()) continue;
+        const ViewDecode& v = owner.views[next++];
+        Bits bits(num_bits);
+        for (int i = 0; i < num_bits; ++i) bits[i] = v.logits[i] > 0;
+        const int errors = HammingDistance(bits, expected);
+        const double p = BinomialTailPValue(num_bits - errors, num_bits);
+        std::printf(
+            "detect (owner's reading): %s: registered (%d inliers of %d "
+            "matches, %.2f px): %d of %d bits wrong (BER %s), p-value %.3g, "
+            "%s\n",
+            files[k].c_str(), g.inliers, g.matches, g.rms_px, errors, num_bits,
+            Percent(double(errors) / num_bits).c_str(), p,
+            ToString(Decide(p, thresholds)).c_str());
+      }
+      owned =
+          AggregateViews(owner.views, num_bits,
+                         expected.empty() ? nullptr : &expected, thresholds);
+      if (owned.has_expected) {
+        const ViewBerSpread s = SpreadOfViewBer(owned);
+        std::printf(
+            "detect (owner's reading): %zu of %zu images registered: BER %s "
+            "(%d of %d bits); single-image BER mean %s p90 %s\n",
+            owned.views.size(), files.size(), Percent(owned.ber).c_str(),
+            owned.bit_errors, num_bits, Percent(s.mean).c_str(),
+            Percent(s.p90).c_str());
+        std::printf(
+            "detect (owner's reading): verdict: %s (false-positive rate "
+            "%.0e)\n",
+            ToString(owned.verdict).c_str(), present_p);
+      }
+    }
+  }
   if (!json_path.empty()) {
     // extract's JSON, with each image's bits, logits, p-value and verdict,
     // and the whole single-image BER distribution.
@@ -258,6 +379,35 @@ int RunDetect(int argc, char** argv) {
       images.push_back(e);
     }
     j["views"] = images;
+    if (!raw_path.empty()) {
+      nlohmann::json o = owned.views.empty()
+                             ? nlohmann::json::object()
+                             : nlohmann::json::parse(ExtractionToJson(owned));
+      o["raw_path"] = raw_path;
+      nlohmann::json reg = nlohmann::json::array();
+      for (size_t k = 0; k < files.size(); ++k) {
+        const Registration& g = owner.registrations[k];
+        nlohmann::json e = {{"name", files[k]},
+                            {"registered", g.registered},
+                            {"matches", g.matches},
+                            {"inliers", g.inliers}};
+        if (g.registered) {
+          e["rms_px"] = g.rms_px;
+          const RenderCamera& c = g.camera;
+          e["camera"] = {
+              {"fx", c.fx},
+              {"fy", c.fy},
+              {"cx", c.cx},
+              {"cy", c.cy},
+              {"center", {c.Center().x(), c.Center().y(), c.Center().z()}}};
+        } else {
+          e["why"] = g.why;
+        }
+        reg.push_back(e);
+      }
+      o["registrations"] = reg;
+      j["owner"] = o;
+    }
     AtomicWriteFile(json_path, j.dump(2) + "\n");
   }
   return 0;

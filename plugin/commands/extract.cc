@@ -165,8 +165,9 @@ int RunExtract(int argc, char** argv) {
   ModelData raw;
   if (!raw_path.empty()) {
     if (SamePath(raw_path, input_path)) {
-      Fail("extract: --raw_path is the --input_path (the owner's reading "
-           "compares two models)");
+      Fail(
+          "extract: --raw_path is the --input_path (the owner's reading "
+          "compares two models)");
     }
     raw = ReadModelFile(raw_path);
   }

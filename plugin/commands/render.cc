@@ -15,15 +15,51 @@
 #include "gaussian/rasterizer.h"
 #include "gaussian/trainer.h"
 #include "plugin/command.h"
+#include "plugin/image_file.h"
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
+#include "watermark/extractor.h"
+#include "watermark/image_attacks.h"
 
 namespace {
 
 using namespace watergs;
 
+// Free viewpoints between the cameras (as extract --num_views samples them),
+// each attacked in turn by `attacks` and written as free_NNN.png or, with a
+// JPEG quality, .jpg: the copies a leak would hold.
+void RenderFreeViews(const GaussianModel& model, const WorkspaceViews& views,
+                     int num_views, uint64_t seed,
+                     const std::vector<ImageAttackSpec>& attacks,
+                     int jpeg_quality, const RenderOptions& options,
+                     Rasterizer& rasterizer, const std::string& output_path) {
+  const std::vector<RenderCamera> cameras =
+      SampleFreeViewpoints(views, num_views, seed);
+  ProgressBar bar("render", static_cast<int64_t>(cameras.size()));
+  ImageRGB image;
+  for (size_t k = 0; k < cameras.size(); ++k) {
+    rasterizer.Forward(model, cameras[k], options, &image, nullptr);
+    for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+    for (const ImageAttackSpec& attack : attacks) {
+      image = ApplyImageAttack(attack, image);
+    }
+    char name[32];
+    std::snprintf(name, sizeof(name), "free_%03zu.%s", k,
+                  jpeg_quality > 0 ? "jpg" : "png");
+    WriteImageFile(output_path + "/" + name, image, "",
+                   jpeg_quality > 0 ? jpeg_quality : 95);
+    bar.Update(static_cast<int64_t>(k + 1));
+  }
+  bar.Finish();
+  std::printf("render: %zu free viewpoints (seed %llu) -> %s\n", cameras.size(),
+              static_cast<unsigned long long>(seed), output_path.c_str());
+}
+
 int RunRender(int argc, char** argv) {
+  int num_views = 0, jpeg_quality = 0;
+  int64_t seed = 0;
+  std::string image_attack;
   std::string input_path, output_path, split = "test", background = "0,0,0";
   WorkspaceOptions ws;
   int sh_degree = -1, num_threads = 0;
@@ -46,7 +82,24 @@ int RunRender(int argc, char** argv) {
   parser.Add("background", &background, "r,g,b in [0, 1], black or white");
   parser.Add("sh_degree", &sh_degree, "SH degree to use (-1 = the model's)");
   parser.Add("num_threads", &num_threads, "Threads (0 = all cores)");
+  parser.Add("num_views", &num_views,
+             "Render N free viewpoints between the cameras instead (as "
+             "extract --num_views samples them; no PSNR)");
+  parser.Add("seed", &seed, "Seed of the free viewpoints");
+  parser.Add("image_attack", &image_attack,
+             "With --num_views: attacks applied to each render in turn, "
+             "comma-separated: crop:F, resize:F, jpeg:Q");
+  parser.Add("jpeg_quality", &jpeg_quality,
+             "With --num_views: write JPEG files of this quality (1-100; 0 = "
+             "PNG)");
   if (!parser.Parse(argc, argv)) return 0;
+  if (num_views < 0) Fail("--num_views must be >= 0");
+  if (jpeg_quality < 0 || jpeg_quality > 100) {
+    Fail("--jpeg_quality must be in 0..100 (0 = PNG)");
+  }
+  if (num_views == 0 && (!image_attack.empty() || jpeg_quality > 0)) {
+    Fail("--image_attack and --jpeg_quality go with --num_views");
+  }
   if (split != "test" && split != "train" && split != "all") {
     Fail("--split must be test, train or all, got '" + split + "'");
   }
@@ -62,6 +115,18 @@ int RunRender(int argc, char** argv) {
   const Workspace workspace = Workspace::Open(ws);
   const bool truth = workspace.has_images();
   const WorkspaceViews views(workspace);
+  if (num_views > 0) {
+    CreateDirectories(output_path);
+    auto rasterizer = MakeRasterizer(parser.device());
+    RenderOptions options;
+    options.background = bg;
+    options.active_sh_degree = sh_degree;
+    RenderFreeViews(ply.model, views, num_views, uint64_t(seed),
+                    image_attack.empty() ? std::vector<ImageAttackSpec>{}
+                                         : ParseImageAttackList(image_attack),
+                    jpeg_quality, options, *rasterizer, output_path);
+    return 0;
+  }
   std::vector<size_t> selected;
   if (split == "test") selected = workspace.TestViews(true);
   if (split == "train") selected = workspace.TrainViews(true);

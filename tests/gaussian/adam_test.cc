@@ -71,6 +71,25 @@ TEST(Adam, PositionRateScalesWithExtentOthersConstant) {
   EXPECT_DOUBLE_EQ(adam.LearningRate(ParamGroup::kRotation), 1e-3);
 }
 
+// embed --lr_scale: every rate scales, the schedule's shape and Adam's
+// constants do not.
+TEST(Adam, ScaleRatesScalesEveryRateAndNothingElse) {
+  const AdamOptions base;
+  AdamOptions scaled = base;
+  ScaleRates(0.25, &scaled);
+  EXPECT_DOUBLE_EQ(scaled.position_lr_init, 0.25 * base.position_lr_init);
+  EXPECT_DOUBLE_EQ(scaled.position_lr_final, 0.25 * base.position_lr_final);
+  EXPECT_DOUBLE_EQ(scaled.feature_lr, 0.25 * base.feature_lr);
+  EXPECT_DOUBLE_EQ(scaled.feature_rest_lr, 0.25 * base.feature_rest_lr);
+  EXPECT_DOUBLE_EQ(scaled.opacity_lr, 0.25 * base.opacity_lr);
+  EXPECT_DOUBLE_EQ(scaled.scaling_lr, 0.25 * base.scaling_lr);
+  EXPECT_DOUBLE_EQ(scaled.rotation_lr, 0.25 * base.rotation_lr);
+  EXPECT_EQ(scaled.position_lr_max_steps, base.position_lr_max_steps);
+  EXPECT_EQ(scaled.beta1, base.beta1);
+  EXPECT_EQ(scaled.beta2, base.beta2);
+  EXPECT_EQ(scaled.eps, base.eps);
+}
+
 TEST(Adam, MatchesDoublePrecisionReference) {
   GaussianModel model = RandomModel(7, 1, 1);
   const GaussianModel start = model;

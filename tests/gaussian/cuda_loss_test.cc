@@ -157,6 +157,38 @@ TEST(CudaLoss, DeviceEntryPointIsReproducible) {
               kMeanTolerance);
 }
 
+// The embedder's MSE term on the device, against its formula in double:
+// total = w mean (x - y)^2, l1 = mean |x - y|, grad = 2 w (x - y) / n.
+TEST(CudaLoss, MseMatchesItsFormulaInDouble) {
+  WATERGS_REQUIRE_CUDA();
+  for (const Size& size : kSizes) {
+    const ImageRGB truth = RandomImage(size.w, size.h, 12);
+    const ImageRGB rendered = Perturbed(truth, 0.05f, 13);
+    const size_t n = truth.data.size();
+    const double weight = 50;
+    double sq = 0, abs = 0;
+    ImageRGB expected(size.w, size.h);
+    for (size_t j = 0; j < n; ++j) {
+      const double d = double(rendered.data[j]) - truth.data[j];
+      sq += d * d;
+      abs += std::abs(d);
+      expected.data[j] = float(2 * weight * d / double(n));
+    }
+    DeviceBuffer<float> r, t, g;
+    r.Upload(rendered.data);
+    t.Upload(truth.data);
+    g.Resize(n);
+    CudaTrainingLoss loss;
+    const LossTerms terms =
+        loss.MseDevice(r.data(), t.data(), n, weight, g.data());
+    EXPECT_NEAR(terms.total, weight * sq / double(n), kMeanTolerance * weight);
+    EXPECT_NEAR(terms.l1, abs / double(n), kMeanTolerance);
+    ImageRGB got(size.w, size.h);
+    g.Download(&got.data);
+    ExpectGradientsMatch(expected, got, "mse");
+  }
+}
+
 TEST(CudaLoss, MismatchedSizesAreAnError) {
   WATERGS_REQUIRE_CUDA();
   CudaTrainingLoss loss;

@@ -166,7 +166,7 @@ TEST(Extractor, OwnerReadingDecodesTheDifferenceFromTheReference) {
   Decoder decoder(&s.net);
   auto rasterizer = MakeCpuRasterizer();
   GaussianModel suspect = s.model;
-  for (float& c : suspect.sh_dc) c += 0.05f;
+  for (float& c : suspect.sh_dc) c += 0.3f;
   Bits expected(48);
   for (int i = 0; i < 48; ++i) expected[i] = (i * 5) % 3 == 0;
   const OwnerExtraction both = ExtractWatermarkWithReference(
@@ -189,7 +189,14 @@ TEST(Extractor, OwnerReadingDecodesTheDifferenceFromTheReference) {
     int errors = 0;
     for (int i = 0; i < 48; ++i) {
       const double d = double(la[i]) - lb[i];
-      ASSERT_GT(std::abs(d), kOwnerTieLogit) << "a tie in the fixture";
+      if (std::abs(d) <= kOwnerTieLogit) {
+        // A tie reads against the claim.
+        EXPECT_EQ(both.owner.views[v].logits[i],
+                  expected[i] ? -kOwnerTieLogit : kOwnerTieLogit);
+        sum[i] += both.owner.views[v].logits[i];
+        ++errors;
+        continue;
+      }
       EXPECT_NEAR(both.owner.views[v].logits[i], d, 1e-5) << v << " " << i;
       sum[i] += d;
       errors += (d > 0) != (expected[i] == 1);

@@ -35,19 +35,18 @@ int Stride(int array, int rest) {
 
 }  // namespace
 
-CudaEmbeddingStep::CudaEmbeddingStep(CudaRasterizer* rasterizer,
-                                     DevicePatchDecoder* decoder,
-                                     const AdamOptions& adam_options,
-                                     double scene_extent, double beta,
-                                     double gamma, double margin,
-                                     std::vector<float> targets,
-                                     GaussianModel* host_model, Adam* host_adam)
+CudaEmbeddingStep::CudaEmbeddingStep(
+    CudaRasterizer* rasterizer, DevicePatchDecoder* decoder,
+    const AdamOptions& adam_options, double scene_extent, double beta,
+    double gamma, double margin, std::vector<float> targets,
+    GaussianModel* host_model, Adam* host_adam, double mse_weight)
     : rasterizer_(rasterizer),
       decoder_(decoder),
       mirror_(adam_options, scene_extent, host_model, host_adam),
       loss_(beta),
       gamma_(gamma),
       margin_(margin),
+      mse_weight_(mse_weight),
       targets_(std::move(targets)) {}
 
 CudaEmbeddingStep::~CudaEmbeddingStep() = default;
@@ -113,16 +112,19 @@ DeviceEmbedLoss CudaEmbeddingStep::Forward(const DeviceEmbedView& view,
                              image_.data(), &context_);
   out.render_s = StageSeconds(&t);
 
-  out.image = loss_.EvaluateDevice(image_.data(), truth_.data(), rect.width,
-                                   rect.height, grad_image_.data());
+  out.image =
+      mse_weight_ > 0
+          ? loss_.MseDevice(image_.data(), truth_.data(), values, mse_weight_,
+                            grad_image_.data())
+          : loss_.EvaluateDevice(image_.data(), truth_.data(), rect.width,
+                                 rect.height, grad_image_.data());
   out.image_loss_s = StageSeconds(&t);
 
   const std::vector<float> logits =
       decoder_->LogitsDevicePatch(image_.data(), rect.width, crop);
   std::vector<float> dlogits;
-  out.bce =
-      MessageBce(logits, targets_, gamma_, &dlogits, &out.bit_errors, margin_,
-                 view.reference_logits);
+  out.bce = MessageBce(logits, targets_, gamma_, &dlogits, &out.bit_errors,
+                       margin_, view.reference_logits);
   decoder_->AddInputGradientDevicePatch(dlogits, grad_image_.data(), rect.width,
                                         crop);
   out.decoder_s = StageSeconds(&t);

@@ -46,12 +46,14 @@ namespace watergs {
 class CudaEmbeddingStep : public DeviceEmbeddingStep {
  public:
   // `rasterizer`, `decoder`, `host_model` and `host_adam` (the embedder's)
-  // must outlive this; targets holds the message's 0/1 bits.
+  // must outlive this; targets holds the message's 0/1 bits. mse_weight > 0:
+  // the image term is that times the MSE (as the host's), else (1 - beta) L1
+  // + beta D-SSIM.
   CudaEmbeddingStep(CudaRasterizer* rasterizer, DevicePatchDecoder* decoder,
                     const AdamOptions& adam_options, double scene_extent,
                     double beta, double gamma, double margin,
                     std::vector<float> targets, GaussianModel* host_model,
-                    Adam* host_adam);
+                    Adam* host_adam, double mse_weight = 0);
   ~CudaEmbeddingStep() override;
 
   // DeviceEmbeddingStep. Forward draws from rng as the host step does
@@ -87,6 +89,7 @@ class CudaEmbeddingStep : public DeviceEmbeddingStep {
   CudaTrainingLoss loss_;
   double gamma_;
   double margin_;  // see MessageBce
+  double mse_weight_;
   std::vector<float> targets_;
   std::map<const DistortionLayer*, std::unique_ptr<CudaDistortionLayer>>
       layers_;

@@ -1,0 +1,234 @@
+// Registration of images without a pose (see image_registration.h).
+#include "plugin/image_registration.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "gaussian/error.h"
+
+namespace watergs {
+namespace {
+
+// 8-bit grey of a float RGB image in [0, 1].
+cv::Mat Grey(const ImageRGB& image) {
+  cv::Mat rgb(image.height, image.width, CV_32FC3,
+              const_cast<float*>(image.data.data()));
+  cv::Mat grey, grey8;
+  cv::cvtColor(rgb, grey, cv::COLOR_RGB2GRAY);
+  grey.convertTo(grey8, CV_8U, 255.0);
+  return grey8;
+}
+
+cv::Matx33d Intrinsics(const RenderCamera& c) {
+  return {c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1};
+}
+
+// RMS reprojection error of `inliers` under K, rvec, tvec.
+double RmsError(const std::vector<cv::Point3d>& object,
+                const std::vector<cv::Point2d>& pixels, const cv::Matx33d& K,
+                const cv::Mat& rvec, const cv::Mat& tvec) {
+  std::vector<cv::Point2d> projected;
+  cv::projectPoints(object, rvec, tvec, K, cv::noArray(), projected);
+  double sum = 0;
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    const cv::Point2d d = projected[i] - pixels[i];
+    sum += d.dot(d);
+  }
+  return std::sqrt(sum / std::max<size_t>(1, pixels.size()));
+}
+
+}  // namespace
+
+struct ImageRegistrar::Index {
+  cv::Mat descriptors;  // one SIFT row per anchored feature
+  std::vector<cv::Point3d> points;
+  cv::Ptr<cv::SIFT> sift = cv::SIFT::create();
+  cv::FlannBasedMatcher matcher;
+};
+
+ImageRegistrar::ImageRegistrar(const Workspace& workspace,
+                               const TrainingViews& views,
+                               const RegistrationOptions& options)
+    : index_(std::make_unique<Index>()), options_(options) {
+  if (views.NumViews() == 0) Fail("registration: the workspace has no view");
+  reference_ = views.Camera(0);
+  const Reconstruction& model = workspace.reconstruction();
+  for (size_t v = 0; v < views.NumViews(); ++v) {
+    if (std::count(options.skip_views.begin(), options.skip_views.end(), v)) {
+      continue;
+    }
+    const RenderCamera camera = views.Camera(v);
+    // The view's SfM points projected into its (undistorted, scaled) image.
+    std::vector<cv::Point2f> projected;
+    std::vector<cv::Point3d> anchors;
+    for (const Point2D& p : workspace.ViewImage(v).points2D) {
+      if (!p.HasPoint3D() || !model.ExistsPoint3D(p.point3D_id)) continue;
+      const Eigen::Vector3d X = model.GetPoint3D(p.point3D_id).xyz;
+      const Eigen::Vector3d x = camera.R * X + camera.t;
+      if (x.z() <= camera.near_plane) continue;
+      projected.emplace_back(float(camera.fx * x.x() / x.z() + camera.cx),
+                             float(camera.fy * x.y() / x.z() + camera.cy));
+      anchors.emplace_back(X.x(), X.y(), X.z());
+    }
+    if (projected.empty()) continue;
+    std::vector<cv::KeyPoint> keypoints;
+    cv::Mat descriptors;
+    index_->sift->detectAndCompute(Grey(*views.Image(v)), cv::noArray(),
+                                   keypoints, descriptors);
+    const double max_d2 = options.associate_px * options.associate_px;
+    for (size_t k = 0; k < keypoints.size(); ++k) {
+      double best = max_d2;
+      int found = -1;
+      for (size_t j = 0; j < projected.size(); ++j) {
+        const cv::Point2f d = keypoints[k].pt - projected[j];
+        const double d2 = d.dot(d);
+        if (d2 <= best) best = d2, found = int(j);
+      }
+      if (found < 0) continue;
+      index_->descriptors.push_back(descriptors.row(int(k)));
+      index_->points.push_back(anchors[size_t(found)]);
+    }
+  }
+  if (index_->points.empty()) {
+    Fail("registration: no photo of " + workspace.options().workspace_path +
+         " has a SIFT feature on an SfM point");
+  }
+  index_->matcher.add(std::vector<cv::Mat>{index_->descriptors});
+  index_->matcher.train();
+}
+
+ImageRegistrar::~ImageRegistrar() = default;
+
+size_t ImageRegistrar::IndexSize() const { return index_->points.size(); }
+
+Registration ImageRegistrar::Register(const ImageRGB& image) const {
+  Registration r;
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  // A smaller copy is searched at the photos' scale (its features would be
+  // too few and too coarse), then the positions scaled back.
+  cv::Mat grey = Grey(image);
+  const double up = std::max(1.0, double(reference_.width) / image.width);
+  if (up > 1.05) {
+    cv::resize(grey, grey, cv::Size(), up, up, cv::INTER_CUBIC);
+  }
+  index_->sift->detectAndCompute(grey, cv::noArray(), keypoints, descriptors);
+  if (up > 1.05) {
+    for (cv::KeyPoint& k : keypoints) k.pt *= float(1 / up);
+  }
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> pixels;
+  if (!keypoints.empty()) {
+    std::vector<std::vector<cv::DMatch>> knn;
+    index_->matcher.knnMatch(descriptors, knn, 2);
+    for (const auto& m : knn) {
+      if (m.size() < 2 || m[0].distance >= options_.ratio * m[1].distance) {
+        continue;
+      }
+      object.push_back(index_->points[size_t(m[0].trainIdx)]);
+      pixels.push_back(keypoints[size_t(m[0].queryIdx)].pt);
+    }
+  }
+  r.matches = int(object.size());
+  if (r.matches < options_.min_inliers) {
+    r.why = std::to_string(keypoints.size()) + " features, " +
+            std::to_string(r.matches) +
+            " matched to the workspace's SfM points (" +
+            std::to_string(options_.min_inliers) + " needed)";
+    return r;
+  }
+  // Start from the workspace camera, centred on the image, with its focal
+  // length as a resize would scale it or as a crop keeps it: the one more
+  // points agree with.
+  RenderCamera camera = reference_;
+  camera.width = image.width;
+  camera.height = image.height;
+  camera.cx = image.width / 2.0;
+  camera.cy = image.height / 2.0;
+  cv::Matx33d K;
+  cv::Mat rvec, tvec;
+  std::vector<int> inliers;
+  bool solved = false;
+  for (const double scale : {double(image.width) / reference_.width, 1.0}) {
+    RenderCamera guess = camera;
+    guess.fx = reference_.fx * scale;
+    guess.fy = reference_.fy * scale;
+    const cv::Matx33d K_guess = Intrinsics(guess);
+    cv::Mat r_guess, t_guess;
+    std::vector<int> in_guess;
+    const bool ok = cv::solvePnPRansac(
+        object, pixels, K_guess, cv::noArray(), r_guess, t_guess, false, 2000,
+        float(options_.inlier_px), 0.999, in_guess, cv::SOLVEPNP_SQPNP);
+    if (ok && in_guess.size() > inliers.size()) {
+      solved = true;
+      K = K_guess;
+      rvec = r_guess;
+      tvec = t_guess;
+      inliers = std::move(in_guess);
+    }
+  }
+  r.inliers = int(inliers.size());
+  if (!solved || r.inliers < options_.min_inliers) {
+    r.why = std::to_string(r.matches) + " matches, " +
+            std::to_string(r.inliers) + " consistent with one pose (" +
+            std::to_string(options_.min_inliers) + " needed)";
+    return r;
+  }
+  std::vector<cv::Point3d> in_object;
+  std::vector<cv::Point2d> in_pixels;
+  for (int i : inliers) {
+    in_object.push_back(object[size_t(i)]);
+    in_pixels.push_back(pixels[size_t(i)]);
+  }
+  cv::solvePnP(in_object, in_pixels, K, cv::noArray(), rvec, tvec, true,
+               cv::SOLVEPNP_ITERATIVE);
+  r.rms_px = RmsError(in_object, in_pixels, K, rvec, tvec);
+  // Focal length and principal point refined with the pose (a crop or a
+  // resize changed them); kept only if the fit improves and stays sane.
+  {
+    cv::Mat K_refined = cv::Mat(K).clone(), dist = cv::Mat::zeros(5, 1, CV_64F);
+    std::vector<cv::Mat> rvecs, tvecs;
+    std::vector<cv::Point3f> object_f(in_object.begin(), in_object.end());
+    std::vector<cv::Point2f> pixels_f(in_pixels.begin(), in_pixels.end());
+    const int flags = cv::CALIB_USE_INTRINSIC_GUESS |
+                      cv::CALIB_FIX_ASPECT_RATIO | cv::CALIB_ZERO_TANGENT_DIST |
+                      cv::CALIB_FIX_K1 | cv::CALIB_FIX_K2 | cv::CALIB_FIX_K3;
+    try {
+      cv::calibrateCamera(std::vector<std::vector<cv::Point3f>>{object_f},
+                          std::vector<std::vector<cv::Point2f>>{pixels_f},
+                          cv::Size(image.width, image.height), K_refined, dist,
+                          rvecs, tvecs, flags);
+      cv::Matx33d K2(K_refined);
+      const double rms = RmsError(in_object, in_pixels, K2, rvecs[0], tvecs[0]);
+      const bool sane = K2(0, 0) > 0.5 * K(0, 0) && K2(0, 0) < 2 * K(0, 0) &&
+                        std::abs(K2(0, 2) - K(0, 2)) < image.width &&
+                        std::abs(K2(1, 2) - K(1, 2)) < image.height;
+      if (sane && rms < r.rms_px) {
+        K = K2;
+        rvec = rvecs[0];
+        tvec = tvecs[0];
+        r.rms_px = rms;
+      }
+    } catch (const cv::Exception&) {
+      // Degenerate geometry: keep the PnP pose at the guessed intrinsics.
+    }
+  }
+  cv::Mat R;
+  cv::Rodrigues(rvec, R);
+  cv::cv2eigen(R, camera.R);
+  cv::cv2eigen(tvec, camera.t);
+  camera.fx = K(0, 0);
+  camera.fy = K(1, 1);
+  camera.cx = K(0, 2);
+  camera.cy = K(1, 2);
+  r.camera = camera;
+  r.registered = true;
+  return r;
+}
+
+}  // namespace watergs

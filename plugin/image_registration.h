@@ -1,0 +1,72 @@
+// Poses for images that come without one (screenshots, video frames, copies
+// of renders): each image is registered to a workspace's reconstruction, so
+// that the owner can render the raw model at the same viewpoint and read the
+// watermark from the difference (`detect --raw_path`). The index holds SIFT
+// features of the workspace's photos that lie on a projected SfM point (so
+// each carries a 3D position); a query's features are matched to it (Lowe's
+// ratio test), the pose found by PnP RANSAC with the workspace camera's
+// intrinsics scaled to the query's width, then focal length and principal
+// point refined on the inliers (a crop moves the principal point, a resize
+// the focal length). OpenCV does the features, matching and geometry.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gaussian/camera.h"
+#include "gaussian/image.h"
+#include "gaussian/trainer.h"
+#include "plugin/workspace.h"
+
+namespace watergs {
+
+struct RegistrationOptions {
+  // Lowe's ratio: best match distance below this fraction of the second's.
+  double ratio = 0.8;
+  // RANSAC inlier threshold, pixels of the query.
+  double inlier_px = 3.0;
+  // Fewer inliers than this: not registered.
+  int min_inliers = 25;
+  // A photo's feature takes an SfM point's 3D position when within this
+  // many pixels of the point's projection.
+  double associate_px = 1.5;
+  // Views left out of the index (a test registers a photo against the
+  // others).
+  std::vector<size_t> skip_views;
+};
+
+// The outcome for one image.
+struct Registration {
+  bool registered = false;
+  // The pinhole camera of the image (its size, refined intrinsics).
+  RenderCamera camera;
+  // Ratio-test matches, RANSAC inliers, inlier RMS reprojection (pixels).
+  int matches = 0, inliers = 0;
+  double rms_px = 0;
+  // Why not registered (one line), empty when registered.
+  std::string why;
+};
+
+class ImageRegistrar {
+ public:
+  // Builds the index from the views of `workspace` (photos loaded through
+  // `views`; the index keeps what it needs). Error if no photo has a
+  // feature on an SfM point.
+  ImageRegistrar(const Workspace& workspace, const TrainingViews& views,
+                 const RegistrationOptions& options = {});
+  ~ImageRegistrar();
+
+  Registration Register(const ImageRGB& image) const;
+  // SfM-anchored features in the index.
+  size_t IndexSize() const;
+
+ private:
+  struct Index;
+  std::unique_ptr<Index> index_;
+  RegistrationOptions options_;
+  // The first view's camera: the intrinsics a query starts from.
+  RenderCamera reference_;
+};
+
+}  // namespace watergs
