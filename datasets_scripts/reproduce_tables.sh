@@ -255,7 +255,7 @@ embed_run() {
     "$bin" embed --input_path "$raw_dir/point_cloud.ply" --workspace_path "$workspace" --downscale "$ds" \
     --decoder "$decoder" --message "$message" --output_path "$run_dir/watermarked.ply" \
     --iterations "$embed_iterations" --gamma "$gamma" --mask "$mask" --distortions "$distortions" \
-    --crop_size "$crop_size" --seed "$seed" --num_threads "$num_threads" --eval $embed_args
+    --crop_size "$crop_size" --seed "$seed" --num_threads "$num_threads" --eval --reading blind $embed_args
   run_step "$run_dir/eval.seconds" "$run_dir/eval.stdout" "eval $what" \
     "$bin" eval --raw_path "$raw_dir/point_cloud.ply" --input_path "$run_dir/watermarked.ply" \
     --workspace_path "$workspace" --downscale "$ds" --decoder "$decoder" --message "$message" \

@@ -159,7 +159,7 @@ for len in "${lengths[@]}"; do
         cmd=(nice -n 10 "$binary" embed --device cpu --input_path "$raw_path" --workspace_path "$workspace"
           --downscale "$downscale" --decoder "$dec" --message "$message" --output_path "$tmp_wm"
           --iterations "$iters" --crop_size "$crop" --distortions "$dist_arg"
-          --num_threads "$threads" --seed "$seed" --eval)
+          --num_threads "$threads" --seed "$seed" --eval --reading blind)
         # shellcheck disable=SC2206  # word-split on purpose
         [ -z "$embed_args" ] || cmd+=($embed_args)
         echo "${cmd[*]}" | sed -e "s#$tmp_wm#$wm#" | rel >>"$commands"

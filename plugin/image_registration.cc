@@ -47,7 +47,9 @@ double RmsError(const std::vector<cv::Point3d>& object,
 struct ImageRegistrar::Index {
   cv::Mat descriptors;  // one SIFT row per anchored feature
   std::vector<cv::Point3d> points;
-  cv::Ptr<cv::SIFT> sift = cv::SIFT::create();
+  // A lower contrast threshold than SIFT's 0.04: renders and small photos
+  // have few strong corners.
+  cv::Ptr<cv::SIFT> sift = cv::SIFT::create(0, 3, 0.02);
   cv::FlannBasedMatcher matcher;
 };
 

@@ -23,14 +23,14 @@ namespace watergs {
 
 struct RegistrationOptions {
   // Lowe's ratio: best match distance below this fraction of the second's.
-  double ratio = 0.8;
+  double ratio = 0.85;
   // RANSAC inlier threshold, pixels of the query.
   double inlier_px = 3.0;
   // Fewer inliers than this: not registered.
-  int min_inliers = 25;
+  int min_inliers = 15;
   // A photo's feature takes an SfM point's 3D position when within this
   // many pixels of the point's projection.
-  double associate_px = 1.5;
+  double associate_px = 2.5;
   // Views left out of the index (a test registers a photo against the
   // others).
   std::vector<size_t> skip_views;

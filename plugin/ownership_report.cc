@@ -56,18 +56,35 @@ std::string Chance(double p) {
          " &times; 10<sup>" + std::to_string(exponent) + "</sup>";
 }
 
-// The claim read as the owner (empty when it was not read so).
-std::string OwnerReadingRow(const ExtractionResult& owner) {
-  if (owner.views.empty()) return "";
-  return "<tr><th>Read as the owner</th><td>one view alone: bit error rate "
-         "mean " +
-         Printf("%.2f", 100 * owner.mean_view_ber) + "%, 90th percentile " +
-         Printf("%.2f", 100 * owner.p90_view_ber) +
-         "%; all views: " + std::to_string(owner.bit_errors) + " bits wrong, " +
-         HtmlEscape(ToString(owner.verdict)) +
-         "<br><span class=\"small\">each bit from the difference of the "
-         "decoder's outputs on the watermarked and the raw model's renders "
-         "of the same view (the owner keeps the raw model)</span></td></tr>\n";
+// The claim in the other reading (empty when it was not read so).
+std::string OtherReadingRow(const ExtractionResult& other,
+                            bool other_is_owner) {
+  if (other.views.empty()) return "";
+  return std::string("<tr><th>") +
+         (other_is_owner ? "Read as the owner" : "Read blind") +
+         "</th><td>one view alone: bit error rate mean " +
+         Printf("%.2f", 100 * other.mean_view_ber) + "%, 90th percentile " +
+         Printf("%.2f", 100 * other.p90_view_ber) +
+         "%; all views: " + std::to_string(other.bit_errors) + " bits wrong, " +
+         HtmlEscape(ToString(other.verdict)) + "<br><span class=\"small\">" +
+         (other_is_owner
+              ? "each bit from the difference of the decoder's outputs on the "
+                "watermarked and the raw model's renders of the same view"
+              : "each bit from the decoder's outputs on the watermarked "
+                "model's renders alone (no raw model)") +
+         "</span></td></tr>\n";
+}
+
+// How the claim was read, for its card.
+std::string ReadingNote(bool owner_reading) {
+  return owner_reading
+             ? "<p class=\"small\">Read as the owner: each bit from the "
+               "difference between the decoder's outputs on the watermarked "
+               "and on the raw model's render of the same view (the owner "
+               "keeps the raw model; the embedding optimised this "
+               "reading).</p>\n"
+             : "<p class=\"small\">Read blind: each bit from the decoder's "
+               "outputs on the watermarked model's renders alone.</p>\n";
 }
 
 // CSS class of a verdict.
@@ -413,7 +430,8 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
     << (ev.view_names.size() == 1 ? "" : "s") << " and the decoder read a "
     << bits << "-bit message from the renders. "
     << "It differs from the claimed message in <b>" << claim.bit_errors
-    << " of " << bits << "</b> bits.</p>\n<table class=\"facts\">\n"
+    << " of " << bits << "</b> bits.</p>\n"
+    << ReadingNote(r.owner_reading) << "<table class=\"facts\">\n"
     << "<tr><th>Claimed message</th><td><code>" << HtmlEscape(r.message_text)
     << "</code> = hex <code>" << BitsToHex(claim.expected)
     << "</code></td></tr>\n"
@@ -431,8 +449,8 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
     << claim.views.size()
     << " views, each decoded on its own (what a single screenshot of the "
        "scene reads)</td></tr>\n"
-    << OwnerReadingRow(r.claim_owner) << "<tr><th>p-value</th><td><b>"
-    << Scientific(claim.p_value)
+    << OtherReadingRow(r.claim_other, !r.owner_reading)
+    << "<tr><th>p-value</th><td><b>" << Scientific(claim.p_value)
     << "</b>: if this model carried no watermark, each bit would match the "
        "claimed message only by chance, like a coin toss; the chance of "
     << bits - claim.bit_errors << " or more of " << bits
@@ -552,7 +570,11 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
        "<th>Verdict</th><th class=\"num\">One view: BER mean / p90</th>"
        "</tr>\n";
   for (const RobustnessRow& row : ev.robustness) {
-    const ExtractionResult& e = row.extraction;
+    // The raw model read against itself is all ties: its control is blind.
+    const bool owner_first =
+        r.owner_reading && row.model != "raw" && !row.owner.views.empty();
+    const ExtractionResult& e = owner_first ? row.owner : row.extraction;
+    const ExtractionResult& other = owner_first ? row.extraction : row.owner;
     std::string model = row.model, attack = row.attack;
     if (row.kind == "3d") attack += " (3D)";
     if (row.kind == "2d") attack += " (2D, renders)";
@@ -578,11 +600,12 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
       << HtmlEscape(ToString(e.verdict)) << "</td><td class=\"num\">"
       << Printf("%.1f", 100 * e.mean_view_ber) << "% / "
       << Printf("%.1f", 100 * e.p90_view_ber) << "%"
-      << (row.owner.views.empty()
+      << (other.views.empty()
               ? std::string()
-              : "<br><span class=\"small\">owner " +
-                    Printf("%.1f", 100 * row.owner.mean_view_ber) + "% / " +
-                    Printf("%.1f", 100 * row.owner.p90_view_ber) + "%</span>")
+              : std::string("<br><span class=\"small\">") +
+                    (owner_first ? "blind " : "owner ") +
+                    Printf("%.1f", 100 * other.mean_view_ber) + "% / " +
+                    Printf("%.1f", 100 * other.p90_view_ber) + "%</span>")
       << "</td></tr>\n";
   }
   h << "</table>\n";

@@ -73,10 +73,12 @@ struct OwnershipReport {
   // Quality and robustness on the evaluated views; suspect copies are
   // robustness rows of model "file" (after the raw model's row).
   EvaluationReport evaluation;
-  // The watermarked model read without attack: the claim, and the same
-  // renders read as the owner (minus the raw model's logits, extractor.h).
+  // The watermarked model read without attack: the claim, in the reading
+  // the report was asked for (owner_reading: minus the raw model's logits,
+  // extractor.h), and the same renders in the other reading.
+  bool owner_reading = true;
   ExtractionResult claim;
-  ExtractionResult claim_owner;
+  ExtractionResult claim_other;
   // The raw model read the same way (the contrast an owner shows).
   ExtractionResult raw;
   // Views shown in full.

@@ -127,16 +127,18 @@ OwnershipReport CollectOwnershipReport(
                             options.thresholds);
   };
   const RobustnessRow* claim = FindRow(evaluation, "watermarked", "identity");
+  OwnerExtraction both;
   if (claim) {
-    r.claim = claim->extraction;
-    r.claim_owner = claim->owner;
+    both.blind = claim->extraction;
+    both.owner = claim->owner;
   } else {
-    OwnerExtraction both = ExtractWatermarkWithReference(
+    both = ExtractWatermarkWithReference(
         rasterizer, watermarked, raw, cameras, evaluation.view_names, decoder,
         &message, options.background, options.thresholds);
-    r.claim = std::move(both.blind);
-    r.claim_owner = std::move(both.owner);
   }
+  r.owner_reading = request.owner_reading;
+  r.claim = request.owner_reading ? both.owner : both.blind;
+  r.claim_other = request.owner_reading ? both.blind : both.owner;
   const RobustnessRow* control = FindRow(evaluation, "raw", "identity");
   r.raw = control ? control->extraction : extract(raw);
 
@@ -203,8 +205,14 @@ OwnershipReport CollectOwnershipReport(
       std::snprintf(p, sizeof(p), "%.17g", options.thresholds.present_p);
       common += std::string(" --false_positive_rate ") + p;
     }
+    // A suspect's command reads it as the claim was read (as the owner:
+    // minus the raw model's renders); the raw model's reads it blind.
+    const std::string owner =
+        request.owner_reading ? " --raw_path " + ShellQuote(request.raw_path)
+                              : std::string();
     const auto extract_command = [&](const std::string& path) {
-      return "watergs extract --input_path " + ShellQuote(path) + common;
+      return "watergs extract --input_path " + ShellQuote(path) + common +
+             (path == request.raw_path ? std::string() : owner);
     };
     r.commands.push_back({"The claim alone (the verdict above)",
                           extract_command(request.watermarked_path)});

@@ -39,6 +39,9 @@ struct ReportRequest {
   std::string generator;
   // Shown first under "Reproduce" (e.g. the command as run).
   std::vector<ReportCommand> commands;
+  // The claim is read as the owner (each view minus the raw model's, the
+  // reading embed optimises by default); false: blind, the decoder alone.
+  bool owner_reading = true;
 };
 
 // The options `extract` needs to read exactly `views` (indices into the

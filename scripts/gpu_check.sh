@@ -96,10 +96,11 @@ stage_demo() {
     step 150 embed "$W" embed --device cuda --input_path "$o/train/point_cloud.ply" --workspace_path $sc \
       --downscale 2 --decoder $dec --message text:WGS-26 --output_path "$o/wm.ply" --iterations 1500 \
       --crop_size 0 --free_view_fraction 0.5 --gamma 0.03 --densify off --check_every 250 --check_views 4 --eval || rc=1
-    for f in "$o/train/point_cloud.ply" "$o/wm.ply"; do
-      step 40 "extract $(basename "$f")" "$W" extract --device cuda --input_path "$f" --workspace_path $sc \
-        --downscale 2 --decoder $dec --message text:WGS-26 || rc=1
-    done
+    step 40 "extract point_cloud.ply" "$W" extract --device cuda --input_path "$o/train/point_cloud.ply" \
+      --workspace_path $sc --downscale 2 --decoder $dec --message text:WGS-26 || rc=1
+    # Read blind and as the owner (embed's default reading since issue 36).
+    step 40 "extract wm.ply" "$W" extract --device cuda --input_path "$o/wm.ply" --workspace_path $sc \
+      --downscale 2 --decoder $dec --message text:WGS-26 --raw_path "$o/train/point_cloud.ply" || rc=1
   } > "$tmp/demo_raw.txt" 2>&1
   # Progress bars redraw with \r: keep the lines that are not bars.
   tr '\r' '\n' < "$tmp/demo_raw.txt" | grep -v -E '^(train|embed) \[' > "$out/demo.txt"

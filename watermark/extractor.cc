@@ -106,14 +106,21 @@ OwnerExtraction ExtractWatermarkWithReference(
     const std::vector<std::string>& names, BitDecoder& decoder,
     const Bits* expected, const std::array<float, 3>& background,
     const VerificationThresholds& thresholds, const RenderAttack& attack,
-    const DecodedViewObserver& observe) {
+    const DecodedViewObserver& observe,
+    const std::vector<RenderCamera>& reference_cameras) {
   OwnerExtraction out;
   out.blind =
       ExtractWatermark(rasterizer, model, cameras, names, decoder, expected,
                        background, thresholds, attack, observe);
+  if (!reference_cameras.empty() &&
+      reference_cameras.size() != cameras.size()) {
+    Fail("owner's reading: " + std::to_string(reference_cameras.size()) +
+         " reference cameras for " + std::to_string(cameras.size()) + " views");
+  }
   const ExtractionResult raw =
-      ExtractWatermark(rasterizer, reference, cameras, names, decoder, nullptr,
-                       background, thresholds);
+      ExtractWatermark(rasterizer, reference,
+                       reference_cameras.empty() ? cameras : reference_cameras,
+                       names, decoder, nullptr, background, thresholds);
   out.owner =
       AggregateViews(DifferenceViews(out.blind.views, raw.views, expected),
                      decoder.NumBits(), expected, thresholds);

@@ -111,14 +111,18 @@ struct OwnerExtraction {
 
 // ExtractWatermark of `model`, and the owner's reading against `reference`
 // rendered from the same cameras (clean: `attack` applies to the suspect's
-// renders only, as an owner renders the raw model himself).
+// renders only, as an owner renders the raw model himself), or from
+// `reference_cameras` when given (one per camera: a suspect moved by a
+// similarity is rendered from moved cameras, the raw model from the
+// original ones).
 OwnerExtraction ExtractWatermarkWithReference(
     Rasterizer& rasterizer, const GaussianModel& model,
     const GaussianModel& reference, const std::vector<RenderCamera>& cameras,
     const std::vector<std::string>& names, BitDecoder& decoder,
     const Bits* expected, const std::array<float, 3>& background,
     const VerificationThresholds& thresholds, const RenderAttack& attack = {},
-    const DecodedViewObserver& observe = {});
+    const DecodedViewObserver& observe = {},
+    const std::vector<RenderCamera>& reference_cameras = {});
 
 // The result as JSON text (recovered hex/bits, BER, spread, p-value, verdict,
 // per-view BER).

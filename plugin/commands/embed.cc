@@ -161,6 +161,7 @@ void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
   std::vector<size_t> all(views.NumViews());
   for (size_t k = 0; k < all.size(); ++k) all[k] = k;
   ReportRequest request;
+  request.owner_reading = a.reading == "owner";
   request.raw_path = a.input_path;
   request.watermarked_path = a.output_path;
   request.decoder_path = a.decoder_path;
@@ -184,6 +185,7 @@ void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
   if (a.workspace.downscale != 1) {
     report_command += " --downscale " + std::to_string(a.workspace.downscale);
   }
+  if (a.reading == "blind") report_command += " --reading blind";
   report_command += " --decoder " + ShellQuote(a.decoder_path) +
                     ClaimOptions(a.message, a.key_option) + " --output_path " +
                     ShellQuote(a.report_path);
@@ -288,7 +290,8 @@ int RunEmbed(int argc, char** argv) {
              "The reading the embedding optimises: blind (the decoder's "
              "logits, what extract reads alone) or owner (logits minus the "
              "raw model's at the same viewpoint, what extract --raw_path "
-             "reads)");
+             "reads). blind also sets the blind defaults of --margin 3, "
+             "--fidelity photos, --mse_weight 0, --lr_scale 1 (unless given)");
   parser.Add("mse_weight", &a.mse_weight,
              "> 0: image loss = this x MSE (PSNR's measure) instead of L1 + "
              "D-SSIM");
@@ -319,6 +322,15 @@ int RunEmbed(int argc, char** argv) {
       "Fine-tune on the training views only, holding out every 8th "
       "view as train --eval does (so that eval scores unseen views)");
   if (!parser.Parse(argc, argv)) return 0;
+  if (a.reading == "blind") {
+    // The blind reading's own defaults (docs/history.md, "One view is
+    // enough"): it must overcome the scene's lean per bit, so a wider margin,
+    // L1 + D-SSIM to the photos and Inria's rates; options given win.
+    if (!parser.Given("margin")) a.margin = 3;
+    if (!parser.Given("fidelity")) a.fidelity = "photos";
+    if (!parser.Given("mse_weight")) a.mse_weight = 0;
+    if (!parser.Given("lr_scale")) a.lr_scale = 1;
+  }
   Validate(a);
   if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
   const std::string checkpoint_path = a.output_path + ".ckpt";

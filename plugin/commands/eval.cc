@@ -135,7 +135,14 @@ int RunEval(int argc, char** argv) {
   parser.Add("report", &report_path,
              "Also write the ownership report (HTML, see watergs report) of "
              "these views to this file");
+  std::string reading = "owner";
+  parser.Add("reading", &reading,
+             "With --report: how its claim is read, owner (minus the raw "
+             "model's renders) or blind (the decoder alone)");
   if (!parser.Parse(argc, argv)) return 0;
+  if (reading != "owner" && reading != "blind") {
+    Fail("eval: --reading owner or blind");
+  }
   if (max_views < 0) Fail("eval: --max_views must be >= 0");
   if (!(present_p > 0 && present_p < 0.01)) {
     Fail("eval: --false_positive_rate must be in (0, 0.01)");
@@ -219,6 +226,7 @@ int RunEval(int argc, char** argv) {
   }
   if (!report_path.empty()) {
     ReportRequest request;
+    request.owner_reading = reading == "owner";
     request.raw_path = raw_path;
     request.watermarked_path = input_path;
     request.decoder_path = decoder_path;

@@ -198,6 +198,9 @@ int RunExtract(int argc, char** argv) {
       names.push_back(views.Name(pool[k * n / count]));
     }
   }
+  // The raw model is not moved: the owner's reading renders it from the
+  // cameras as they were.
+  const std::vector<RenderCamera> raw_cameras = cameras;
   if (!scene_transform.empty()) {
     const SimilarityTransform transform = ParseSceneTransform(scene_transform);
     for (RenderCamera& camera : cameras) {
@@ -224,7 +227,7 @@ int RunExtract(int argc, char** argv) {
   } else {
     both = ExtractWatermarkWithReference(
         *rasterizer, ply.model, raw.model, cameras, names, *decoder, claim,
-        ParseBackground(background), thresholds, attack);
+        ParseBackground(background), thresholds, attack, {}, raw_cameras);
   }
   const ExtractionResult& r = both.blind;
 

@@ -236,7 +236,9 @@ class ExtractResult(_Result):
     present"), false_positive_rate; otherwise these are None. Per view:
     view_names, view_ber (numpy float64, each view decoded alone; None
     without a message). mean_logits: numpy float32. report: the --json
-    output as a dict.
+    output as a dict. owner: with raw_path=RAW, the owner's reading (each
+    view's logits minus the raw model's at the same viewpoint) as an
+    ExtractResult of its own; None without raw_path.
     """
 
     def __init__(self, report):
@@ -262,6 +264,8 @@ class ExtractResult(_Result):
         self.view_ber = np.array(
             [v["bit_errors"] / self.num_bits for v in report["views"]],
             dtype=np.float64) if claimed else None
+        self.owner = ExtractResult(report["owner"]) if "owner" in report \
+            else None
 
 
 def extract(input_path, workspace_path, decoder, message=None, *,

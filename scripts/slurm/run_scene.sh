@@ -144,8 +144,10 @@ fi
 iters=(--checkpoint_every "$checkpoint_every")
 [ -n "$embed_iterations" ] && iters+=(--iterations "$embed_iterations")
 [ -f "$dir/watermarked.ply.ckpt" ] && iters+=(--resume)
+# The blind reading, as eval's summary columns (and the paper's tables) read it; --embed_args
+# "--reading owner" embeds for the owner's reading instead.
 step embed "$bin" embed --input_path "$raw" --workspace_path "$workspace" --decoder "$decoder" \
-  --message "$message" --output_path "$dir/watermarked.ply" --seed "$seed" --eval "${iters[@]}" \
+  --message "$message" --output_path "$dir/watermarked.ply" --seed "$seed" --eval --reading blind "${iters[@]}" \
   "${common[@]}" "${embed_args[@]}"
 rm -f "$dir/watermarked.ply.ckpt"  # the finished embedding's state (three times the PLY): done with it
 step eval "$bin" eval --raw_path "$raw" --input_path "$dir/watermarked.ply" --workspace_path "$workspace" \

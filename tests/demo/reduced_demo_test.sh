@@ -19,9 +19,9 @@ root="$(cd "$(dirname "$0")/../.." && pwd)"
 scene="$root/datasets_scripts/demo_scene"
 decoder="$root/watermark/models/decoder_48.bin"
 message="text:WGS-26"
-MAX_MEAN_ERRORS="${MAX_MEAN_ERRORS:-@MEAN@}"  # of 48, mean over the 6 held-out views (measured @MEASURED_MEAN@)
-MAX_P90_ERRORS="${MAX_P90_ERRORS:-@P90@}"    # measured @MEASURED_P90@
-MIN_PSNR_VS_RAW="${MIN_PSNR_VS_RAW:-@PSNR@}"  # dB, held-out views (measured @MEASURED_PSNR@)
+MAX_MEAN_ERRORS="${MAX_MEAN_ERRORS:-3}"  # of 48, mean over the 6 held-out views as the owner (measured 1.50)
+MAX_P90_ERRORS="${MAX_P90_ERRORS:-4}"    # measured 2
+MIN_PSNR_VS_RAW="${MIN_PSNR_VS_RAW:-36}"  # dB, held-out views (measured 38.03)
 # Extra embed options, to see the test fail on a weaker embedding (e.g. --margin 0).
 read -r -a extra <<< "${EMBED_EXTRA_ARGS:-}"
 out="$(mktemp -d)"

@@ -46,10 +46,10 @@ common=(--workspace_path "$scene" --downscale 4)
 
 count() { "$bin" ply_info --input_path "$1" | awk '/^Gaussians:/ {print $2}'; }
 n="$(count "$out/wm.ply")"
-verdict() {  # FILE: prints the verdict over the 48 cameras
+verdict() {  # FILE: prints the owner's verdict over the 48 cameras (minus the raw model's renders)
   "$bin" extract --input_path "$1" "${common[@]}" --decoder "$decoder" --message "$message" \
-    --json "$out/extract.json" > "$out/extract.txt"
-  python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["verdict"], "(%d of %d bits wrong)" % (round(j["ber"]*j["num_bits"]), j["num_bits"]))' "$out/extract.json"
+    --raw_path "$out/train/point_cloud.ply" --json "$out/extract.json" > "$out/extract.txt"
+  python3 -c 'import json,sys; j=json.load(open(sys.argv[1]))["owner"]; print(j["verdict"], "(%d of %d bits wrong)" % (round(j["ber"]*j["num_bits"]), j["num_bits"]))' "$out/extract.json"
 }
 check() {  # LABEL FILE
   local v

@@ -68,7 +68,8 @@ TEST(DetectCli, ReadsTheWatermarkFromRenderedImagesAsExtractDoes) {
       " --workspace_path " + wo.workspace_path + " --decoder " + kDecoder +
       " --message " + kClaim + " --output_path " + (dir / "wm.ply") +
       " --iterations 500 --distortions none --crop_size 0 --densify off"
-      " --check_every 20 --check_views 6 --patience 1 --num_threads 2");
+      " --reading blind --check_every 20 --check_views 6 --patience 1"
+      " --num_threads 2");
   ASSERT_EQ(embed.exit_code, 0) << embed.output;
   const GaussianModel wm = ReadPly(dir / "wm.ply").model;
   const Workspace workspace = Workspace::Open(wo);

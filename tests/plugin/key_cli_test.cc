@@ -52,7 +52,7 @@ TEST(KeyCli, OnlyTheKeyedClaimReadsPresent) {
       " --message " + kMessage + " --key 'file:" + key_file +
       "' --output_path " + (dir / "wm.ply") +
       " --iterations 800 --distortions none --free_view_fraction 0"
-      " --check_free_views 0 --num_threads 2");
+      " --check_free_views 0 --reading blind --num_threads 2");
   ASSERT_EQ(embed.exit_code, 0) << embed.output;
   // The fingerprint an owner registers: SHA-256 of the key's bytes.
   EXPECT_NE(embed.output.find("key SHA-256 " + KeyFingerprint(kKey)),

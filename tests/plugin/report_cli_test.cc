@@ -115,7 +115,8 @@ TEST(ReportCli, ClaimAndEveryRowAreWhatTheListedCommandsPrint) {
   const auto run = RunCommand(
       WatergsBin() + " report --raw_path " + s.raw + " --input_path " + q_wm +
       common + " --message hex:" + hex +
-      " --false_positive_rate 1e-4 --attacks gn:0.02,dropout:0.3,"
+      " --reading blind --false_positive_rate 1e-4 --attacks "
+      "gn:0.02,dropout:0.3,"
       "similarity:30,0.1,-0.2,0.3,1.5 --image_attacks jpeg:50 --copies " +
       copy + " --show_views 2 --output_path " + page);
   ASSERT_EQ(run.exit_code, 0) << run.output;
