@@ -55,18 +55,20 @@ raw_psnr=$(psnr "$raw" raw)
 wm_psnr=$(psnr "$out/wm.ply" wm)
 
 summary=()
-add_summary() {  # NAME TEXT_FILE: aggregated BER and verdict, single views, the owner's reading
-  local blind owner=""
+add_summary() {  # NAME TEXT_FILE: the owner's reading (when read) then the blind one; aggregated, then single views
+  local blind owner read
   blind=$(grep -v "owner's reading" "$2")
-  if grep -q "owner's reading" "$2"; then
-    owner=" | as the owner: one view $(grep "owner's reading): single" "$2" |
-      grep -o 'BER mean [0-9.]*% median [0-9.]*% p90 [0-9.]*%'), $(grep "owner's reading): verdict" "$2" |
-      grep -o 'watermark [a-z]*')"
+  read="$blind"
+  grep -q "owner's reading" "$2" && read=$(grep "owner's reading" "$2")
+  line=$(printf '%-18s %s | %s | one view: %s' "$1" \
+    "$(grep -o 'BER [0-9.]*%' <<< "$read" | head -1)" \
+    "$(grep -o 'verdict: [a-z ]*' <<< "$read" | head -1 | sed 's/ *$//')" \
+    "$(grep -o 'BER mean [0-9.]*% median [0-9.]*% p90 [0-9.]*%' <<< "$read")")
+  if [ "$read" != "$blind" ]; then
+    line+=" | blind: $(grep -o 'BER [0-9.]*%' <<< "$blind" | head -1), $(grep -o 'verdict: [a-z ]*' <<< "$blind" |
+      sed 's/verdict: //; s/ *$//'), one view $(grep -o 'BER mean [0-9.]*%' <<< "$blind" | sed 's/BER //')"
   fi
-  summary+=("$(printf '%-18s %s | %s | one view: %s%s' "$1" \
-    "$(grep -o 'BER [0-9.]*%' <<< "$blind" | head -1)" \
-    "$(grep -o 'verdict: .*' <<< "$blind")" \
-    "$(grep -o 'BER mean [0-9.]*% median [0-9.]*% p90 [0-9.]*%' <<< "$blind")" "$owner")")
+  summary+=("$line")
 }
 # Each file read blind (its renders alone) and as the owner (minus the raw model's renders).
 for name in raw wm wm_gn wm_dropout wm_crop; do
@@ -101,6 +103,7 @@ run report --raw_path "$raw" --input_path "$out/wm.ply" --workspace_path "$scene
 
 echo
 echo "== demo summary (message '$message', decoder $decoder, $((SECONDS - start)) s)"
+echo "   each row: the owner's reading (minus the raw model's renders) where the file was read so, then blind"
 printf '%s\n' "${summary[@]}"
 echo "held-out PSNR vs the photos: raw $raw_psnr dB, watermarked $wm_psnr dB; watermarked vs the raw renders: $vs_raw dB"
 echo "ownership report: $out/report.html"

@@ -9,6 +9,9 @@
 # read our file as present too. (SOG's SH palette: -g cpu, no WebGPU here; -i 1 k-means round,
 # as the CPU takes ~13 s a round on the demo's 40k Gaussians.) Also checks that the
 # converter really rewrote the data (the files differ from the input) and kept the count.
+# The embedding is the blind one (--reading blind), read blind: the converters' fidelity under
+# the strong embedding. (embed's default, the owner's reading at 37 dB, reads watergs' own SOG
+# written back to PLY by splat-transform at 12 of 48 wrong at this size: docs/formats.md.)
 # The tools come from `scripts/install_deps.sh --tests` (npm group, into WATERGS_NPM_PREFIX); if
 # they are missing the test installs them the same way. Exit 77 (skip) only when the npm
 # registry cannot be reached.
@@ -41,15 +44,15 @@ echo "splat_transform_test: $("$node" "$cli" --version 2>&1 | head -n 1), node $
 common=(--workspace_path "$scene" --downscale 4)
 "$bin" train "${common[@]}" --output_path "$out/train" --iterations 300 > "$out/train.log" 2>&1
 "$bin" embed --input_path "$out/train/point_cloud.ply" "${common[@]}" --decoder "$decoder" \
-  --message "$message" --output_path "$out/wm.ply" --iterations 300 > "$out/embed.log" 2>&1 ||
+  --message "$message" --output_path "$out/wm.ply" --iterations 300 --reading blind > "$out/embed.log" 2>&1 ||
   { cat "$out/embed.log"; fail "embed"; }
 
 count() { "$bin" ply_info --input_path "$1" | awk '/^Gaussians:/ {print $2}'; }
 n="$(count "$out/wm.ply")"
-verdict() {  # FILE: prints the owner's verdict over the 48 cameras (minus the raw model's renders)
+verdict() {  # FILE: prints the verdict over the 48 cameras
   "$bin" extract --input_path "$1" "${common[@]}" --decoder "$decoder" --message "$message" \
-    --raw_path "$out/train/point_cloud.ply" --json "$out/extract.json" > "$out/extract.txt"
-  python3 -c 'import json,sys; j=json.load(open(sys.argv[1]))["owner"]; print(j["verdict"], "(%d of %d bits wrong)" % (round(j["ber"]*j["num_bits"]), j["num_bits"]))' "$out/extract.json"
+    --json "$out/extract.json" > "$out/extract.txt"
+  python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["verdict"], "(%d of %d bits wrong)" % (round(j["ber"]*j["num_bits"]), j["num_bits"]))' "$out/extract.json"
 }
 check() {  # LABEL FILE
   local v

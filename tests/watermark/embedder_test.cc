@@ -238,6 +238,20 @@ TEST(MessageBce, MarginShiftsTheLossButNotTheBitErrors) {
   EXPECT_LT(std::abs(plain[0]), std::abs(dlogits[0]));
 }
 
+// 40 iterations on the tiny scene. Whole frames: a random decoder does not
+// read crops and frames alike (a trained one does); crops are covered by the
+// gradient test. A faster colour rate keeps the run short.
+EmbedOptions ShortEmbedOptions() {
+  EmbedOptions o = DefaultEmbedOptions(40);
+  o.crop_size = 0;
+  o.gamma = 3;
+  o.densify = false;
+  o.distortions = ParseDistortionList("identity,dropout:0.1");
+  o.adam.feature_lr = 0.02;
+  o.seed = 2;
+  return o;
+}
+
 // The owner's reading subtracts the raw model's logits first: the loss,
 // gradient and bit errors equal the blind ones on the difference.
 TEST(MessageBce, ReferenceLogitsAreSubtractedBeforeTheMargin) {
@@ -281,13 +295,7 @@ TEST(Embedder, OwnerReadingEmbedsTheDifferenceFromTheInput) {
   MakeResponsive(&net, 1000.f, s.views);
   Decoder decoder(&net);
   const Bits message = RandomBits(16, 9);
-  EmbedOptions o = DefaultEmbedOptions(40);
-  o.crop_size = 0;
-  o.gamma = 3;
-  o.densify = false;
-  o.distortions = ParseDistortionList("identity,dropout:0.1");
-  o.adam.feature_lr = 0.02;
-  o.seed = 2;
+  EmbedOptions o = ShortEmbedOptions();
   o.owner_reading = true;
   o.margin = 0.5;
   o.iterations = 80;
@@ -350,16 +358,7 @@ TEST(Embedder, EmbeddingLowersTheBitErrorRate) {
   MakeResponsive(&net, 1000.f, s.views);
   Decoder decoder(&net);
   const Bits message = RandomBits(16, 9);
-  EmbedOptions o = DefaultEmbedOptions(40);
-  // Whole frames: a random decoder does not read crops and frames alike (a
-  // trained one does); crops are covered by the gradient test.
-  o.crop_size = 0;
-  o.gamma = 3;
-  o.densify = false;
-  o.distortions = ParseDistortionList("identity,dropout:0.1");
-  // A faster colour rate keeps the run short.
-  o.adam.feature_lr = 0.02;
-  o.seed = 2;
+  const EmbedOptions o = ShortEmbedOptions();
   Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder, message,
                     MakeCpuRasterizer());
   const CheckResult before = embedder.Check(s.train);
