@@ -30,6 +30,7 @@
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
+#include "watermark/evaluation.h"
 #include "watermark/extractor.h"
 #include "watermark/image_attacks.h"
 #include "watermark/image_reading.h"
@@ -126,16 +127,13 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
   const ImageRegistrar registrar(workspace, views);
   const std::unique_ptr<Rasterizer> rasterizer = MakeRasterizer(device);
   OwnerImages out;
-  RenderOptions options;
   for (size_t k = 0; k < files.size(); ++k) {
     Registration r = registrar.Register(images[k]);
     if (r.registered) {
-      ImageRGB render;
-      rasterizer->Forward(raw.model, r.camera, options, &render, nullptr);
-      for (float& v : render.data) v = std::clamp(v, 0.f, 1.f);
       ViewDecode reference;
       reference.name = files[k];
-      reference.logits = decoder.Logits(render);
+      reference.logits = decoder.Logits(
+          RenderClamped(*rasterizer, raw.model, r.camera, {0.f, 0.f, 0.f}));
       std::vector<ViewDecode> one =
           DifferenceViews({decoded[k]}, {reference}, expected);
       out.views.push_back(std::move(one[0]));
