@@ -8,7 +8,13 @@
 #   OUT/<scene>/poses_bounds.npy   kept for other tools
 # Scenes: fern flower fortress horns leaves orchids room trex. Held-out views: every 8th image (--eval).
 #
-# Usage: bash datasets_scripts/download_llff.sh [OUT_DIR (default data/llff)] [scene ...]
+# Usage: bash datasets_scripts/download_llff.sh [--from DIR] [OUT_DIR (default data/llff)] [scene ...]
+#   --from DIR  lay out the scenes from a local copy instead of the archive: DIR holds <scene>/ folders
+#               directly or under nerf_llff_data/, data/ or data/nerf_llff_data/ (an unpacked archive, or
+#               a clone of a repository that carries LLFF scenes, e.g. github luo-ziyuan/CopyRNeRF-code for
+#               fern, bwnebs1/23-2_DSL_Modeling_3D_Style_with_NeRF for room and trex).
+# Every scene gets OUT/<scene>/photos.sha256, the SHA-256 of each photo and model file, so a figure can
+# name the exact files it came from (results/real_llff/ keeps a copy; the photos are not committed).
 # Source: the NeRF authors' Google Drive folder
 #   https://drive.google.com/drive/folders/128yBriW1IG_3NJ5Rp7APSTZsJqdJdfc1 (file nerf_llff_data.zip).
 # If the automatic Google Drive download is refused (quota), download nerf_llff_data.zip by hand into
@@ -18,6 +24,13 @@ source "$(dirname "${BASH_SOURCE[0]}")/lib_download.sh"
 
 readonly all_scenes=(fern flower fortress horns leaves orchids room trex)
 readonly gdrive_id="16VnMcF1KJYxN9QId6TClMsZRahHNMW5g"  # nerf_llff_data.zip
+from_dir=""
+if [ "${1:-}" == "--from" ]; then
+  [ $# -ge 2 ] || die "--from needs a folder"
+  from_dir="$2"
+  shift 2
+  [ -d "$from_dir" ] || die "$from_dir: no such folder (--from)"
+fi
 out_dir="${1:-data/llff}"
 [ $# -gt 0 ] && shift
 scenes=("$@")
@@ -26,15 +39,42 @@ for scene in "${scenes[@]}"; do
   [[ " ${all_scenes[*]} " == *" $scene "* ]] || die "unknown LLFF scene '$scene' (known: ${all_scenes[*]})"
 done
 
-require_tools unzip md5sum
-cache="${WATERGS_DOWNLOAD_CACHE:-$out_dir/.downloads}"
-zip="$cache/nerf_llff_data.zip"
-fetch_gdrive "$gdrive_id" "$zip"
+# scene_in_copy SCENE: the folder of SCENE inside --from's folder, or nothing.
+scene_in_copy() {
+  local prefix
+  for prefix in "" nerf_llff_data/ data/ data/nerf_llff_data/; do
+    if [ -d "$from_dir/$prefix$1/images" ]; then
+      echo "$from_dir/$prefix$1"
+      return
+    fi
+  done
+}
+
 mkdir -p "$out_dir"
+if [ -n "$from_dir" ]; then
+  require_tools sha256sum
+  for scene in "${scenes[@]}"; do
+    source_dir="$(scene_in_copy "$scene")"
+    [ -n "$source_dir" ] || die "$from_dir holds no $scene/images (nor under nerf_llff_data/, data/)"
+    copy_folder "$source_dir" "$out_dir/$scene"
+  done
+else
+  require_tools unzip md5sum sha256sum
+  cache="${WATERGS_DOWNLOAD_CACHE:-$out_dir/.downloads}"
+  zip="$cache/nerf_llff_data.zip"
+  fetch_gdrive "$gdrive_id" "$zip"
+  for scene in "${scenes[@]}"; do
+    unpack_folder "$zip" "nerf_llff_data/$scene" "$out_dir/$scene"
+  done
+fi
 for scene in "${scenes[@]}"; do
-  unpack_folder "$zip" "nerf_llff_data/$scene" "$out_dir/$scene"
   rm -f "$out_dir/$scene/database.db"  # COLMAP's matching database: large and not needed for training
   match_downscaled_names "$out_dir/$scene"
+  write_manifest "$out_dir/$scene"
   check_colmap_scene "$out_dir/$scene"
 done
-log "done: ${#scenes[@]} scene(s) in $out_dir; remove $cache to free the archive's space"
+if [ -n "$from_dir" ]; then
+  log "done: ${#scenes[@]} scene(s) in $out_dir (from $from_dir)"
+else
+  log "done: ${#scenes[@]} scene(s) in $out_dir; remove $cache to free the archive's space"
+fi

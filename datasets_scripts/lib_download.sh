@@ -77,6 +77,28 @@ unpack_folder() {
   rm -rf "$scratch"
 }
 
+# copy_folder SOURCE DEST: copies SOURCE to DEST (replacing DEST) through a scratch folder, as
+# unpack_folder does.
+copy_folder() {
+  local source="$1" dest="$2" scratch
+  scratch="$(mktemp -d "${dest%/}.copying.XXXXXX")"
+  log "copying $source"
+  cp -r "$source/." "$scratch/" || { rm -rf "$scratch"; die "cannot copy $source to $scratch"; }
+  rm -rf "$dest"
+  mv "$scratch" "$dest"
+}
+
+# write_manifest SCENE: SCENE/photos.sha256, the SHA-256 of every photo (images*/) and model file
+# (sparse/), paths relative to SCENE, sorted; `sha256sum -c photos.sha256` in SCENE checks a copy.
+write_manifest() {
+  local scene="$1"
+  (cd "$scene" && find . -type f \( -path './images*' -o -path './sparse/*' -o -name poses_bounds.npy \) \
+     -printf '%P\n' | LC_ALL=C sort \
+     | xargs -d '\n' sha256sum > photos.sha256.part && mv photos.sha256.part photos.sha256) \
+    || die "cannot write $scene/photos.sha256"
+  log "manifest: $scene/photos.sha256 ($(wc -l < "$scene/photos.sha256") files)"
+}
+
 # count_images DIR: number of image files directly in DIR.
 count_images() {
   find "$1" -maxdepth 1 -type f \( -iname '*.jpg' -o -iname '*.jpeg' -o -iname '*.png' \) | wc -l
@@ -115,6 +137,11 @@ check_colmap_scene() {
   local scene="$1" file
   [ -d "$scene/images" ] || die "$scene/images is missing"
   for file in cameras images points3D; do
+    if [ "$file" == images ] && [ ! -f "$scene/sparse/0/images.bin" ] && [ ! -f "$scene/sparse/0/images.txt" ]; then
+      log "warning: $scene/sparse/0 has no images.bin (a copy that left it out): reconstruct the" \
+        "poses with: watergs reconstruct --image_path $scene/images --workspace_path ${scene}_reconstructed"
+      continue
+    fi
     [ -f "$scene/sparse/0/$file.bin" ] || [ -f "$scene/sparse/0/$file.txt" ] \
       || die "$scene/sparse/0/$file.bin (or .txt) is missing"
   done

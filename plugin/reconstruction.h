@@ -123,6 +123,7 @@ class Reconstruction {
   bool ExistsPoint3D(point3D_t id) const { return points3D_.count(id) > 0; }
   bool IsImageRegistered(image_t id) const;
   const Camera& GetCamera(camera_t id) const { return cameras_.at(id); }
+  Camera& GetCamera(camera_t id) { return cameras_.at(id); }
   const Image& GetImage(image_t id) const { return images_.at(id); }
   const Point3D& GetPoint3D(point3D_t id) const { return points3D_.at(id); }
 

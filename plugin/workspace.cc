@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iostream>
 #include <list>
 #include <map>
 #include <mutex>
@@ -174,6 +175,71 @@ WorkspaceOptions WithDefaults(const WorkspaceOptions& options) {
   return filled;
 }
 
+// `camera` for images resized to width x height: focal lengths and
+// principal point scale with the size; distortion (on normalized
+// coordinates) is unchanged.
+Camera RescaleCamera(const Camera& camera, int width, int height) {
+  Camera scaled = camera;
+  const double sx = width / double(camera.width);
+  const double sy = height / double(camera.height);
+  const bool single = CameraModelHasSingleFocalLength(camera.model_id);
+  scaled.width = width;
+  scaled.height = height;
+  scaled.params[0] *= single ? 0.5 * (sx + sy) : sx;
+  if (!single) scaled.params[1] *= sy;
+  scaled.params[single ? 1 : 2] *= sx;
+  scaled.params[single ? 2 : 3] *= sy;
+  return scaled;
+}
+
+// Whether a photo of width x height is its camera's width_c x height_c
+// image resized (each side within rounding of the other's scale).
+bool SameAspect(int width, int height, uint64_t width_c, uint64_t height_c) {
+  const long height_at_width = std::lround(double(height_c) * width / width_c);
+  const long width_at_height = std::lround(double(width_c) * height / height_c);
+  return height_at_width == height || width_at_height == width;
+}
+
+// Cameras whose photos were all resized to one other size at the same
+// aspect ratio (LLFF copies at 800x600 of a 4032x3024 camera): their
+// intrinsics are scaled to the photos, as Inria's and gsplat's loaders take
+// the field of view from the camera and the pixels from the image. Returns
+// one notice per scaled camera; photos of one camera at several sizes, or
+// at another aspect ratio, are left to CheckViewImages' error.
+std::vector<std::string> ScaleCamerasToPhotos(Reconstruction* model,
+                                              const std::vector<image_t>& views,
+                                              const std::string& image_path) {
+  std::map<camera_t, std::map<std::pair<int, int>, int>> sizes;
+  for (const image_t id : views) {
+    const Image& image = model->GetImage(id);
+    int width = 0, height = 0;
+    const std::string path = (fs::path(image_path) / image.name).string();
+    if (!fs::is_regular_file(path) ||
+        !ReadImageHeaderSize(path, &width, &height)) {
+      return {};
+    }
+    ++sizes[image.camera_id][{width, height}];
+  }
+  std::vector<std::string> notices;
+  for (const auto& [camera_id, counts] : sizes) {
+    if (counts.size() != 1) continue;
+    const auto [width, height] = counts.begin()->first;
+    Camera& camera = model->GetCamera(camera_id);
+    if (uint64_t(width) == camera.width && uint64_t(height) == camera.height) {
+      continue;
+    }
+    if (!SameAspect(width, height, camera.width, camera.height)) continue;
+    notices.push_back("notice: " + image_path + ": the " +
+                      std::to_string(counts.begin()->second) +
+                      " photos of camera " + std::to_string(camera_id) +
+                      " are " + SizeText(width, height) + ", the camera " +
+                      SizeText(camera.width, camera.height) +
+                      ": its intrinsics are scaled to the photos");
+    camera = RescaleCamera(camera, width, height);
+  }
+  return notices;
+}
+
 // Every view's image exists and, where the header tells, has its camera's
 // size (the rest is checked when decoded).
 void CheckViewImages(const Reconstruction& model,
@@ -194,7 +260,11 @@ void CheckViewImages(const Reconstruction& model,
          uint64_t(height) != camera.height)) {
       FailAt(path, "is " + SizeText(width, height) + " but its camera " +
                        std::to_string(camera.camera_id) + " is " +
-                       SizeText(camera.width, camera.height));
+                       SizeText(camera.width, camera.height) +
+                       (SameAspect(width, height, camera.width, camera.height)
+                            ? " (and the camera's other photos differ)"
+                            : " (another aspect ratio: only photos resized "
+                              "at the camera's are scaled)"));
     }
   }
 }
@@ -219,23 +289,6 @@ RenderCamera MakeRenderCamera(const Image& image, const Camera& pinhole,
   return camera;
 }
 
-// `camera` for images resized to width x height: focal lengths and
-// principal point scale with the size; distortion (on normalized
-// coordinates) is unchanged.
-Camera RescaleCamera(const Camera& camera, int width, int height) {
-  Camera scaled = camera;
-  const double sx = width / double(camera.width);
-  const double sy = height / double(camera.height);
-  const bool single = CameraModelHasSingleFocalLength(camera.model_id);
-  scaled.width = width;
-  scaled.height = height;
-  scaled.params[0] *= single ? 0.5 * (sx + sy) : sx;
-  if (!single) scaled.params[1] *= sy;
-  scaled.params[single ? 1 : 2] *= sx;
-  scaled.params[single ? 2 : 3] *= sy;
-  return scaled;
-}
-
 // The PINHOLE camera of a render camera.
 Camera PinholeOf(const RenderCamera& render, camera_t camera_id) {
   return Camera{camera_id,
@@ -256,11 +309,26 @@ Workspace Workspace::Open(const WorkspaceOptions& options) {
   workspace.model_path_ = FindModelPath(
       opts.input_path.empty() ? opts.workspace_path : opts.input_path);
   workspace.reconstruction_ = ReadReconstruction(workspace.model_path_);
+  if (fs::is_directory(opts.image_path)) {
+    workspace.notices_ = ScaleCamerasToPhotos(
+        &workspace.reconstruction_, workspace.reconstruction_.RegImageIds(),
+        opts.image_path);
+    for (const std::string& notice : workspace.notices_) {
+      std::cerr << notice << "\n";
+    }
+  }
   for (const auto& [id, camera] : workspace.reconstruction_.Cameras()) {
     workspace.undistorted_ |= camera.HasDistortion();
   }
   if (workspace.undistorted_ && opts.use_colmap_undistorter) {
-    workspace.model_path_ = RunColmapUndistorter(opts, workspace.model_path_);
+    std::string input_model = workspace.model_path_;
+    if (!workspace.notices_.empty()) {
+      // The undistorter reads the model from disk: give it the scaled one.
+      input_model = (fs::path(opts.undistorted_path) / "scaled_input").string();
+      WriteReconstruction(workspace.reconstruction_, input_model,
+                          ModelFormat::kBinary);
+    }
+    workspace.model_path_ = RunColmapUndistorter(opts, input_model);
     opts.image_path = (fs::path(opts.undistorted_path) / "images").string();
     workspace.reconstruction_ = ReadReconstruction(workspace.model_path_);
   }

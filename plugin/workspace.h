@@ -45,8 +45,9 @@ class ImageLoader;
 
 class Workspace {
  public:
-  // Reads the model (bin or txt), checks images exist and sizes match cameras;
-  // throws Error.
+  // Reads the model (bin or txt), scales the intrinsics of cameras whose
+  // photos were all resized at the camera's aspect ratio, checks images exist
+  // and sizes match cameras; throws Error.
   static Workspace Open(const WorkspaceOptions& options);
   Workspace(Workspace&&) noexcept;
   Workspace& operator=(Workspace&&) noexcept;
@@ -83,6 +84,9 @@ class Workspace {
   bool undistorted() const { return undistorted_; }
   // Whether the image folder exists (always, unless images_optional).
   bool has_images() const { return has_images_; }
+  // One line per camera whose intrinsics were scaled to its photos (photos
+  // resized at the camera's aspect ratio); also printed to stderr at Open.
+  const std::vector<std::string>& notices() const { return notices_; }
 
  private:
   Workspace() = default;
@@ -98,6 +102,7 @@ class Workspace {
   std::map<camera_t, Camera> pinhole_cameras_;
   bool undistorted_ = false;
   bool has_images_ = false;
+  std::vector<std::string> notices_;
   std::unique_ptr<ImageLoader> loader_;
 };
 

@@ -268,6 +268,70 @@ TEST(Workspace, MissingImageAndSizeMismatchNameTheFile) {
   EXPECT_NE(cli.exit_code, 0);
 }
 
+// Photos resized at their camera's aspect ratio (LLFF copies at 800x600 of
+// a 4032x3024 camera) scale its intrinsics, with one notice; another aspect
+// ratio stays an error naming the file.
+TEST(Workspace, PhotosSmallerThanTheirCameraScaleItsIntrinsics) {
+  testing::TempDir dir("ws_scaled");
+  testing::SyntheticModelOptions options;
+  options.model_ids = {1, 2};
+  options.width = 64;
+  options.height = 48;
+  const Reconstruction model = MakeWorkspace(dir.path(), options);
+  const Workspace full = Workspace::Open(OptionsFor(dir.path()));
+  EXPECT_TRUE(full.notices().empty());
+  int seed = 0;
+  for (const auto& [id, image] : model.Images()) {
+    cv::imwrite(dir / ("images/" + image.name), TextureImage(32, 24, seed++));
+  }
+  const Workspace half = Workspace::Open(OptionsFor(dir.path()));
+  ASSERT_EQ(half.notices().size(), 2u);
+  EXPECT_NE(half.notices()[0].find("are 32x24, the camera 64x48"),
+            std::string::npos)
+      << half.notices()[0];
+  // Pinhole views exactly half; undistorted ones (whose pinhole camera is
+  // fitted to the distorted image's bounds) within a pixel.
+  for (size_t view = 0; view < half.NumViews(); ++view) {
+    const RenderCamera a = full.ViewCamera(view), b = half.ViewCamera(view);
+    const bool pinhole =
+        model.GetCamera(half.ViewImage(view).camera_id).model_id == 1;
+    const double pixel_tolerance = pinhole ? 1e-9 : 1.0;
+    EXPECT_NEAR(b.width, 0.5 * a.width, pinhole ? 0 : 1);
+    EXPECT_NEAR(b.height, 0.5 * a.height, pinhole ? 0 : 1);
+    EXPECT_NEAR(b.fx, 0.5 * a.fx, pixel_tolerance);
+    EXPECT_NEAR(b.fy, 0.5 * a.fy, pixel_tolerance);
+    EXPECT_NEAR(b.cx, 0.5 * a.cx, pixel_tolerance);
+    EXPECT_NEAR(b.cy, 0.5 * a.cy, pixel_tolerance);
+    EXPECT_EQ(half.LoadView(view).width, b.width);
+  }
+  // The pinhole camera's photo is read as is.
+  size_t pinhole_view = half.NumViews();
+  for (size_t view = 0; view < half.NumViews(); ++view) {
+    const camera_t camera = half.ViewImage(view).camera_id;
+    if (model.GetCamera(camera).model_id == 1) pinhole_view = view;
+  }
+  ASSERT_LT(pinhole_view, half.NumViews());
+  EXPECT_EQ(MaxDifference(half.LoadView(pinhole_view),
+                          FileAsFloatRGB(
+                              dir / ("images/" + half.ViewName(pinhole_view)))),
+            0.0);
+  // Another aspect ratio: the first photo's error, no scaling.
+  for (const auto& [id, image] : model.Images()) {
+    cv::imwrite(dir / ("images/" + image.name), TextureImage(32, 20, 1));
+  }
+  try {
+    Workspace::Open(OptionsFor(dir.path()));
+    ADD_FAILURE() << "another aspect ratio not detected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(": is 32x20 but its camera"),
+              std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("another aspect ratio"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Workspace, JpegSizeCheckedFromHeader) {
   testing::TempDir dir("ws_jpeg");
   testing::SyntheticModelOptions options;
