@@ -300,8 +300,11 @@ table.facts th { width: 210px; background: none; }
 .mono, code, pre { font-family: "DejaVu Sans Mono", monospace; font-size: 13px; }
 pre { background: #1f2430; color: #e8eaf0; padding: 10px 12px; border-radius: 4px;
   white-space: pre-wrap; overflow-wrap: anywhere; margin: 4px 0 12px; }
-th, td.num, td.nowrap, td.present, td.absent, td.inconclusive {
-  white-space: nowrap; }
+th, td.num, td.nowrap { white-space: nowrap; }
+.wide { overflow-x: auto; }
+#attacks { font-size: 13.5px; }
+#attacks th { white-space: normal; }
+#attacks td.attack { overflow-wrap: anywhere; min-width: 9em; }
 .views { display: grid; grid-template-columns: repeat(3, minmax(0, 1fr));
   gap: 10px 14px; align-items: start; }
 .views figure { margin: 0; }
@@ -311,7 +314,7 @@ th, td.num, td.nowrap, td.present, td.absent, td.inconclusive {
 .viewname { grid-column: 1 / -1; font-weight: 600; margin-top: 6px; }
 .bar { display: inline-block; height: 10px; background: #5b8def;
   vertical-align: middle; margin-right: 6px; }
-.barbox { display: inline-block; width: 100px; background: #e6e9f0;
+.barbox { display: inline-block; width: 60px; background: #e6e9f0;
   vertical-align: middle; margin-right: 6px; }
 .barbox .bar { margin: 0; }
 svg .grid { stroke: #e3e6ec; } svg .axisline { stroke: #5a6272; }
@@ -563,12 +566,11 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
        "in 3D (the file changed) or in 2D (its renders changed before "
        "decoding), each alone, read on the same views; then the raw model "
        "(the control, which should read &lsquo;absent&rsquo;) and any "
-       "suspect copies given.</p>\n<table id=\"attacks\"><tr><th>Model</th>"
-       "<th>Attack</th><th class=\"num\">Gaussians</th><th class=\"num\">"
-       "PSNR vs truth</th><th>Bit error rate"
-       "</th><th class=\"num\">Bits wrong</th><th class=\"num\">p-value</th>"
-       "<th>Verdict</th><th class=\"num\">One view: BER mean / p90</th>"
-       "</tr>\n";
+       "suspect copies given.</p>\n<div class=\"wide\"><table id=\"attacks\">"
+       "<tr><th>Model</th><th>Attack</th><th class=\"num\">Gaussians</th>"
+       "<th class=\"num\">PSNR vs truth</th><th>Bit error rate (bits "
+       "wrong)</th><th class=\"num\">p-value</th><th>Verdict</th><th "
+       "class=\"num\">One view: BER mean / p90</th></tr>\n";
   for (const RobustnessRow& row : ev.robustness) {
     // The raw model read against itself is all ties: its control is blind.
     const bool owner_first =
@@ -586,18 +588,18 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
       attack = HtmlEscape(attack);
     }
     h << "<tr" << (row.model == "raw" ? " class=\"control\"" : "") << "><td>"
-      << HtmlEscape(model) << "</td><td>" << attack << "</td><td class=\"num\">"
-      << row.num_gaussians << "</td><td class=\"num\">"
+      << HtmlEscape(model) << "</td><td class=\"attack\">" << attack
+      << "</td><td class=\"num\">" << row.num_gaussians
+      << "</td><td class=\"num\">"
       << (std::isfinite(row.psnr) ? Printf("%.2f", row.psnr) + " dB"
                                   : std::string("n/a"))
       << "</td><td class=\"nowrap\"><span "
       << "class=\"barbox\"><span "
       << "class=\"bar\" style=\"width:" << Printf("%.0f", 100 * e.ber)
-      << "px\"></span></span>" << Printf("%.2f", 100 * e.ber)
-      << "%</td><td class=\"num\">" << e.bit_errors << " / " << bits
-      << "</td><td class=\"num\">" << Scientific(e.p_value)
-      << "</td><td class=\"" << VerdictClass(e.verdict) << "\">"
-      << HtmlEscape(ToString(e.verdict)) << "</td><td class=\"num\">"
+      << "%\"></span></span>" << Printf("%.2f", 100 * e.ber) << "% ("
+      << e.bit_errors << " / " << bits << ")</td><td class=\"num\">"
+      << Scientific(e.p_value) << "</td><td class=\"" << VerdictClass(e.verdict)
+      << "\">" << HtmlEscape(ToString(e.verdict)) << "</td><td class=\"num\">"
       << Printf("%.1f", 100 * e.mean_view_ber) << "% / "
       << Printf("%.1f", 100 * e.p90_view_ber) << "%"
       << (other.views.empty()
@@ -608,7 +610,7 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
                     Printf("%.1f", 100 * other.p90_view_ber) + "%</span>")
       << "</td></tr>\n";
   }
-  h << "</table>\n";
+  h << "</table></div>\n";
 
   // Files.
   h << "<h2>Files</h2>\n<table id=\"files\"><tr><th>Role</th><th>Path</th>"

@@ -4,8 +4,10 @@
 #   scripts/screenshot_report.sh PAGE.html OUT.png [WIDTH]
 # writes OUT.png (WIDTH, default 1100, by the page's height, 1 CSS px = 1
 # pixel), OUT.json ({"width", "height", "images": [{id, x, y, width,
-# height, natural_width, natural_height, complete}]}: each <img>'s content
-# box (without its border) in the screenshot, measured after the page loaded) and OUT.console.txt (the
+# height, natural_width, natural_height, complete}], "overflow": [...]}:
+# each <img>'s content box (without its border) in the screenshot, measured
+# after the page loaded; each table, pre, figure or section wider than its
+# container, as "table#attacks 1240 px in 1052 px") and OUT.console.txt (the
 # console messages of both loads; a report has no script, so it should be
 # empty). The boxes come from a copy of the page with a small probe script
 # added at its end; the screenshot is of the page itself, at the same width.
@@ -51,9 +53,23 @@ window.addEventListener('load', () => {
                  natural_width: img.naturalWidth,
                  natural_height: img.naturalHeight, complete: img.complete});
   }
+  // Tables, pre blocks and figures wider than the box they stand in: cut
+  // off at the right edge, or only seen by scrolling sideways.
+  const overflow = [];
+  for (const el of document.querySelectorAll('table, pre, figure, section')) {
+    const parent = el.parentElement;
+    if (el.getBoundingClientRect().width > parent.clientWidth + 1 ||
+        el.scrollWidth > el.clientWidth + 1) {
+      overflow.push((el.id ? el.tagName.toLowerCase() + '#' + el.id
+                           : el.tagName.toLowerCase()) + ' ' +
+                    Math.round(el.scrollWidth) + ' px in ' +
+                    parent.clientWidth + ' px');
+    }
+  }
   document.documentElement.setAttribute('data-probe', JSON.stringify({
     width: document.documentElement.scrollWidth,
-    height: document.documentElement.scrollHeight, images: images}));
+    height: document.documentElement.scrollHeight, images: images,
+    overflow: overflow}));
 });
 </script>
 EOF

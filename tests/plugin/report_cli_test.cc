@@ -358,6 +358,10 @@ PageCheck CheckInBrowser(const std::string& page, const std::string& png) {
     check.problems.push_back("screenshot is not the whole page");
     return check;
   }
+  for (const auto& element : probe["overflow"]) {
+    check.problems.push_back("wider than its box: " +
+                             element.get<std::string>());
+  }
   const std::string html = ReadText(page);
   for (const auto& image : probe["images"]) {
     ++check.images;
