@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -39,6 +40,16 @@ int CountBitErrors(const std::vector<float>& logits, const Bits& message) {
     errors += (logits[i] > 0 ? 1 : 0) != message[i];
   }
   return errors;
+}
+
+// The smallest signed logit over the bits: how far past zero the weakest
+// bit reads its message bit (negative when some bit reads wrong).
+double WeakestMargin(const std::vector<float>& logits, const Bits& message) {
+  double weakest = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < message.size(); ++i) {
+    weakest = std::min(weakest, double(message[i] ? logits[i] : -logits[i]));
+  }
+  return weakest;
 }
 
 // Adds scale * `patch` into `target` at rect's offset.
@@ -632,7 +643,7 @@ const GaussianModel& Embedder::model() const {
 double Embedder::DecodeViews(
     const std::vector<RenderCamera>& cameras,
     const std::vector<std::shared_ptr<const ImageRGB>>* truths,
-    std::vector<double>* sum_logits, double* psnr) {
+    std::vector<double>* sum_logits, double* psnr, double* weakest) {
   RenderOptions render_options;
   render_options.background = options_.background;
   double mean_ber = 0;
@@ -657,6 +668,7 @@ double Embedder::DecodeViews(
     }
     mean_ber += double(CountBitErrors(logits, message_)) / message_.size() /
                 cameras.size();
+    if (weakest) *weakest = std::min(*weakest, WeakestMargin(logits, message_));
     if (sum_logits) {
       for (size_t i = 0; i < logits.size(); ++i) (*sum_logits)[i] += logits[i];
     }
@@ -675,13 +687,14 @@ CheckResult Embedder::Check(const std::vector<size_t>& views) {
       truths.push_back(views_.Image(view));
     }
     std::vector<double> mean_logits(message_.size(), 0.0);
-    result.mean_ber = DecodeViews(cameras, &truths, &mean_logits, &result.psnr);
+    result.mean_ber = DecodeViews(cameras, &truths, &mean_logits, &result.psnr,
+                                  &result.weakest_margin);
     std::vector<float> aggregate(mean_logits.begin(), mean_logits.end());
     result.aggregate_ber =
         double(CountBitErrors(aggregate, message_)) / message_.size();
   }
-  result.free_mean_ber =
-      DecodeViews(options_.check_free_views, nullptr, nullptr, nullptr);
+  result.free_mean_ber = DecodeViews(options_.check_free_views, nullptr,
+                                     nullptr, nullptr, &result.weakest_margin);
   return result;
 }
 
@@ -693,7 +706,7 @@ bool Embedder::Run() {
   }
   RunningAverage loss(0.9), ber(0.95);
   CheckResult last_check;
-  bool checked = false, stopped_early = false;
+  bool checked = false, stopped_early = false, read_past_margin = false;
   while (iteration_ < options_.iterations) {
     const EmbedStepStats stats = Step();
     loss.Add(stats.total);
@@ -707,6 +720,8 @@ bool Embedder::Run() {
           last_check.mean_ber == 0 && last_check.free_mean_ber == 0
               ? zero_ber_checks_ + 1
               : 0;
+      read_past_margin = options_.stop_margin > 0 &&
+                         last_check.weakest_margin >= options_.stop_margin;
     }
     if (options_.checkpoint_every > 0 && it % options_.checkpoint_every == 0 &&
         !options_.checkpoint_path.empty()) {
@@ -730,13 +745,26 @@ bool Embedder::Run() {
       }
       bar->Update(it, line);
     }
-    if (options_.patience > 0 && zero_ber_checks_ >= options_.patience) {
+    if ((options_.patience > 0 && zero_ber_checks_ >= options_.patience) ||
+        read_past_margin) {
       stopped_early = true;
       break;
     }
   }
   if (bar) {
-    bar->Finish(stopped_early ? "stopped early: check BER 0" : "done");
+    char why[200];
+    if (read_past_margin) {
+      std::snprintf(why, sizeof(why),
+                    "stopped at iteration %lld: every check view and free "
+                    "viewpoint reads all %zu bits at least %.2f past zero "
+                    "(weakest %.2f)",
+                    static_cast<long long>(iteration_), message_.size(),
+                    options_.stop_margin, last_check.weakest_margin);
+    } else {
+      std::snprintf(why, sizeof(why), "%s",
+                    stopped_early ? "stopped early: check BER 0" : "done");
+    }
+    bar->Finish(why);
   }
   return stopped_early;
 }

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -85,6 +86,10 @@ struct EmbedOptions {
   // stop early).
   int64_t check_every = 200;
   int patience = 2;
+  // > 0: stop at the first check where every bit of every check view and
+  // free viewpoint reads at least this far past zero: the scene reads, and
+  // more strength would only cost pixels.
+  double stop_margin = 0;
   // Views (indices into the source) decoded at each check (whole frames).
   std::vector<size_t> check_views;
   // Free viewpoints decoded at each check too (no ground truth): early
@@ -150,6 +155,9 @@ struct CheckResult {
   double aggregate_ber = 0;
   // Mean PSNR of the renders against ground truth.
   double psnr = 0;
+  // The smallest signed logit (in the reading the embedding optimises) over
+  // every bit of every check view and free viewpoint: > 0 when all read.
+  double weakest_margin = std::numeric_limits<double>::infinity();
 };
 
 class Embedder {
@@ -214,10 +222,12 @@ class Embedder {
 
   std::string RunSignature() const;
   // Mean per-view BER of whole-frame renders from `cameras`; adds each
-  // render's PSNR against truths[k] / n into *psnr where truths is given.
+  // render's PSNR against truths[k] / n into *psnr where truths is given;
+  // lowers *weakest to the weakest bit's signed logit where given.
   double DecodeViews(const std::vector<RenderCamera>& cameras,
                      const std::vector<std::shared_ptr<const ImageRGB>>* truths,
-                     std::vector<double>* sum_logits, double* psnr);
+                     std::vector<double>* sum_logits, double* psnr,
+                     double* weakest);
   size_t NextView();
   // A free viewpoint between two training cameras and the input model's
   // render there (the image target).

@@ -70,6 +70,7 @@ struct EmbedArgs {
   double lr_scale = 0.2;
   int check_free_views = 4;
   int patience = 0;
+  double stop_margin = 0;
   int check_views = 4;
   int64_t check_every = 250;
   // "auto": on with every group trainable, off with a partial mask; off by
@@ -119,6 +120,7 @@ void Validate(const EmbedArgs& a) {
   if (!(a.gamma >= 0)) Fail("--gamma must be >= 0");
   if (!(a.beta >= 0 && a.beta <= 1)) Fail("--beta must be in [0, 1]");
   if (a.crop_size < 0) Fail("--crop_size must be >= 0 (0 = whole frames)");
+  if (!(a.stop_margin >= 0)) Fail("--stop_margin must be >= 0");
   if (a.patience < 0 || a.check_views < 0 || a.check_every < 1) {
     Fail("--patience, --check_views must be >= 0, --check_every >= 1");
   }
@@ -303,6 +305,10 @@ int RunEmbed(int argc, char** argv) {
              "waits for them)");
   parser.Add("patience", &a.patience,
              "Stop after this many checks at BER 0 (0 = never)");
+  parser.Add("stop_margin", &a.stop_margin,
+             "> 0: stop at the first check where every bit of every check "
+             "view and free viewpoint reads at least this far past zero "
+             "(the strength the scene calls for; 0 = run every iteration)");
   parser.Add("check_views", &a.check_views, "Views decoded at each check");
   parser.Add("check_every", &a.check_every, "Iterations between checks");
   parser.Add("densify", &a.densify,
@@ -362,6 +368,7 @@ int RunEmbed(int argc, char** argv) {
   options.owner_reading = a.reading == "owner";
   options.mse_weight = a.mse_weight;
   options.patience = a.patience;
+  options.stop_margin = a.stop_margin;
   options.check_every = a.check_every;
   const bool all_trainable =
       std::all_of(options.trainable.begin(), options.trainable.end(),

@@ -339,6 +339,66 @@ TEST(Embedder, OwnerReadingEmbedsTheDifferenceFromTheInput) {
   EXPECT_GT(after.psnr, 20.0);
 }
 
+// The strength stop: a check's weakest margin is the smallest signed logit
+// over the check views' bits (computed here directly), and a run stops at
+// the first check where it reaches stop_margin (found by stepping a twin
+// run by hand), not before; without it the run takes every iteration.
+TEST(Embedder, StopsAtTheFirstCheckWhereEveryBitReadsPastTheStopMargin) {
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  Decoder decoder(&net);
+  // The message the input already carries at the check view: every bit
+  // reads, by min |logit|.
+  auto rasterizer = MakeCpuRasterizer();
+  ImageRGB render;
+  rasterizer->Forward(s.model, s.views.Camera(s.train[0]), {}, &render,
+                      nullptr);
+  for (float& x : render.data) x = std::clamp(x, 0.f, 1.f);
+  const std::vector<float> logits = decoder.Logits(render);
+  Bits message(logits.size());
+  double weakest = 1e30;
+  for (size_t i = 0; i < logits.size(); ++i) {
+    message[i] = logits[i] > 0;
+    weakest = std::min(weakest, double(std::abs(logits[i])));
+  }
+  ASSERT_GT(weakest, 1e-4);
+  EmbedOptions o = ShortEmbedOptions();
+  o.check_views = {s.train[0]};
+  o.check_every = 5;
+  o.patience = 0;
+  Embedder twin(o, s.views, s.train, s.model, 3.0, &decoder, message,
+                MakeCpuRasterizer());
+  EXPECT_NEAR(twin.Check(o.check_views).weakest_margin, weakest,
+              1e-5 * weakest);
+  std::vector<double> margins;  // At iterations 5, 10, ...
+  while (twin.iteration() < o.iterations) {
+    twin.Step();
+    if (twin.iteration() % o.check_every == 0) {
+      margins.push_back(twin.Check(o.check_views).weakest_margin);
+    }
+  }
+  // The stop margin: the best check after the first.
+  ASSERT_GE(margins.size(), 3u);
+  o.stop_margin = *std::max_element(margins.begin() + 1, margins.end());
+  ASSERT_GT(o.stop_margin, 0) << "some check must read for this test";
+  const size_t first =
+      std::find_if(margins.begin(), margins.end(),
+                   [&](double m) { return m >= o.stop_margin; }) -
+      margins.begin();
+  Embedder stopping(o, s.views, s.train, s.model, 3.0, &decoder, message,
+                    MakeCpuRasterizer());
+  EXPECT_TRUE(stopping.Run());
+  EXPECT_EQ(stopping.iteration(), int64_t(first + 1) * o.check_every)
+      << "margins at the checks: " << ::testing::PrintToString(margins);
+  // Past every margin the run reaches: all iterations.
+  o.stop_margin = 1 + *std::max_element(margins.begin(), margins.end());
+  Embedder full(o, s.views, s.train, s.model, 3.0, &decoder, message,
+                MakeCpuRasterizer());
+  EXPECT_FALSE(full.Run());
+  EXPECT_EQ(full.iteration(), o.iterations);
+}
+
 TEST(Embedder, OwnerReadingRefusesDecoderJitter) {
   Scene s = MakeScene(2, 32, 24);
   HiddenModel net(TinyDecoderConfig(16), false, 5);
