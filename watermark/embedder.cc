@@ -15,6 +15,7 @@
 #include "gaussian/progress.h"
 #include "gaussian/projection.h"
 #include "watermark/extractor.h"
+#include "watermark/image_attacks.h"
 #include "watermark/nn_layers.h"
 #include "watermark/tensor.h"
 
@@ -113,6 +114,29 @@ double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
   AddPatch(grad,
            crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop,
            1.f, grad_image);
+  return bce;
+}
+
+double AddJpegMessageLoss(BitDecoder& decoder, const ImageRGB& image,
+                          const PixelRect& crop, int quality,
+                          const std::vector<float>& targets, double gamma,
+                          ImageRGB* grad_image, int* bit_errors, double margin,
+                          const std::vector<float>* reference) {
+  const PixelRect region =
+      crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop;
+  ImageRGB cropped;
+  if (!crop.empty()) CropImage(image, crop, &cropped);
+  ImageAttackSpec jpeg;
+  jpeg.kind = ImageAttackKind::kJpeg;
+  jpeg.value = quality;
+  const ImageRGB compressed =
+      ApplyImageAttack(jpeg, crop.empty() ? image : cropped);
+  ImageRGB grad(compressed.width, compressed.height);
+  const double bce =
+      AddMessageLoss(decoder, compressed, PixelRect{}, targets, gamma, &grad,
+                     bit_errors, margin, reference);
+  // Straight-through: d JPEG(x) / dx taken as the identity.
+  AddPatch(grad, region, 1.f, grad_image);
   return bce;
 }
 
@@ -232,6 +256,15 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
     Fail("embed: free_view_neighbors must be >= 0");
   }
   if (!(options_.margin >= 0)) Fail("embed: margin must be >= 0");
+  if (options_.jpeg_quality < 0 || options_.jpeg_quality > 100 ||
+      !(options_.jpeg_fraction >= 0 && options_.jpeg_fraction <= 1)) {
+    Fail(
+        "embed: the JPEG layer needs a quality in 1-100 and a fraction in "
+        "[0, 1]");
+  }
+  if (options_.jpeg_quality > 0 && options_.decoder_jitter.enabled()) {
+    Fail("embed: the JPEG layer and decoder jitter do not combine");
+  }
   CheckDecoderJitter(options_.decoder_jitter);
   if (options_.free_view_neighbors > 0) FindNeighbors();
   targets_.assign(message_.begin(), message_.end());
@@ -278,6 +311,8 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
       host_step_reason_ = "8-bit or bfloat16 moments have no CUDA Adam";
     } else if (options_.decoder_jitter.enabled()) {
       host_step_reason_ = "decoder jitter runs on the host";
+    } else if (options_.jpeg_quality > 0 && options_.jpeg_fraction > 0) {
+      host_step_reason_ = "the JPEG layer runs on the host";
     }
   }
   if (cuda_rasterizer && cuda_decoder && host_step_reason_.empty()) {
@@ -336,6 +371,9 @@ std::string Embedder::RunSignature() const {
     j["feature_lr"] = options_.adam.feature_lr;
   }
   if (options_.mse_weight > 0) j["mse_weight"] = options_.mse_weight;
+  if (options_.jpeg_quality > 0 && options_.jpeg_fraction > 0) {
+    j["jpeg_layer"] = {options_.jpeg_quality, options_.jpeg_fraction};
+  }
   j["densify"] = options_.densify;
   j["message"] = BitsToString(message_);
   j["train_views"] = train_views_.size();
@@ -488,6 +526,10 @@ EmbedStepStats Embedder::Step() {
         plan.decoder_crop.empty() ? plan.crop.height : plan.decoder_crop.height;
     plan.jitter = SampleJitter(options_.decoder_jitter, w, h, &rng_);
   }
+  if (options_.jpeg_quality > 0 && options_.jpeg_fraction > 0) {
+    plan.jpeg = std::uniform_real_distribution<double>(0, 1)(rng_) <
+                options_.jpeg_fraction;
+  }
   if (options_.owner_reading) plan.reference_logits = ReferenceLogits(plan);
 
   const DensityEvent event = device_ ? DeviceIteration(it, plan, &stats)
@@ -541,6 +583,8 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   // Message term on the crop: BCE(m, D(crop)) and its image gradient.
   if (options_.decoder_jitter.enabled()) {
     stats->bce = JitteredMessageLoss(plan, stats);
+  } else if (plan.jpeg) {
+    stats->bce = JpegMessageLoss(plan, stats);
   } else {
     stats->bce =
         AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
@@ -582,6 +626,14 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   t.density = Seconds(t5, t6);
   t.adam = Seconds(t6, t7);
   return event;
+}
+
+double Embedder::JpegMessageLoss(const IterationPlan& plan,
+                                 EmbedStepStats* stats) {
+  return AddJpegMessageLoss(*decoder_, render_, plan.decoder_crop,
+                            options_.jpeg_quality, targets_, options_.gamma,
+                            &grad_image_, &stats->bit_errors, options_.margin,
+                            plan.reference_logits.get());
 }
 
 double Embedder::JitteredMessageLoss(const IterationPlan& plan,

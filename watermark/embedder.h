@@ -65,6 +65,13 @@ struct EmbedOptions {
   // The decoder reads each render through a random shift and zoom (see
   // view_jitter.h); off by default.
   DecoderJitterOptions decoder_jitter;
+  // 1-100: on a jpeg_fraction of the iterations the decoder reads the
+  // render through a real JPEG round trip at this quality, its gradient
+  // taken as the identity (straight-through, as MBRS and StegaStamp train
+  // for JPEG): the message learns to survive the screenshots a leak is
+  // saved as. 0: off.
+  int jpeg_quality = 0;
+  double jpeg_fraction = 0;
   // The message term pushes each logit past +-margin (BCE on the logit
   // moved by the margin towards the wrong side): a view whose logits sit
   // far from 0 keeps its bits in the next, unseen view.
@@ -216,6 +223,8 @@ class Embedder {
     JitterSample jitter;
     // A viewpoint between two cameras (truth is then the input's render).
     bool free_view = false;
+    // The decoder reads the render through JPEG (options.jpeg_quality).
+    bool jpeg = false;
     // The input model's logits of the decoded patch (owner's reading).
     std::shared_ptr<const std::vector<float>> reference_logits;
   };
@@ -246,6 +255,9 @@ class Embedder {
   // The message term through the plan's jitter: adds its image gradient
   // into grad_image_ and returns the BCE.
   double JitteredMessageLoss(const IterationPlan& plan, EmbedStepStats* stats);
+  // The message term read through a JPEG round trip of the decoded region;
+  // its image gradient passes straight through to the render.
+  double JpegMessageLoss(const IterationPlan& plan, EmbedStepStats* stats);
   PixelRect SampleRect(int width, int height);
   // The iteration's loss, backward, density control and Adam on the host
   // model, or on the device-resident one.
@@ -335,6 +347,16 @@ double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
 
 // gamma * BCE(targets, D(render(model)[crop])) and its gradient w.r.t. the
 // model, the render taken over options.rect (as Step does); for checks.
+// AddMessageLoss read through a JPEG round trip at `quality` (1-100) of the
+// crop: loss and logits are those of the compressed crop, and its image
+// gradient is added at the crop unchanged (straight-through estimator: the
+// quantisation has no useful derivative; MBRS and StegaStamp train so).
+double AddJpegMessageLoss(BitDecoder& decoder, const ImageRGB& image,
+                          const PixelRect& crop, int quality,
+                          const std::vector<float>& targets, double gamma,
+                          ImageRGB* grad_image, int* bit_errors, double margin,
+                          const std::vector<float>* reference);
+
 double MessageLossGradient(Rasterizer& rasterizer, const GaussianModel& model,
                            const RenderCamera& camera,
                            const RenderOptions& options, const PixelRect& crop,

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -58,6 +59,7 @@ struct EmbedArgs {
   double free_view_fraction = 0.5;
   int free_view_neighbors = 0;
   std::string decoder_jitter = "none";
+  std::string jpeg_layer = "none";
   double margin = 1;
   std::string fidelity = "input";
   // The reading the message term optimises: blind (the decoder's logits) or
@@ -110,6 +112,25 @@ DecoderJitterOptions ParseDecoderJitter(const std::string& text) {
     Fail(std::string("--decoder_jitter: ") + e.what());
   }
   return jitter;
+}
+
+// "none" or "Q:FRACTION" (quality 1-100, fraction of iterations in (0, 1]).
+void ParseJpegLayer(const std::string& text, EmbedOptions* options) {
+  if (text == "none") return;
+  const size_t colon = text.find(':');
+  const std::optional<double> quality =
+      ParseFiniteDouble(text.substr(0, colon));
+  const std::optional<double> fraction =
+      colon == std::string::npos ? std::nullopt
+                                 : ParseFiniteDouble(text.substr(colon + 1));
+  if (!quality || !fraction || *quality != std::floor(*quality) ||
+      *quality < 1 || *quality > 100 || !(*fraction > 0 && *fraction <= 1)) {
+    Fail("--jpeg_layer: '" + Printable(text) +
+         "' is not none or QUALITY:FRACTION (quality 1-100, fraction in "
+         "(0, 1])");
+  }
+  options->jpeg_quality = int(*quality);
+  options->jpeg_fraction = *fraction;
 }
 
 void Validate(const EmbedArgs& a) {
@@ -283,6 +304,11 @@ int RunEmbed(int argc, char** argv) {
              "SHIFT,MIN_SCALE,MAX_SCALE: the decoder reads each render "
              "shifted by up to SHIFT pixels and resized by a factor in "
              "[MIN_SCALE, MAX_SCALE], or none");
+  parser.Add("jpeg_layer", &a.jpeg_layer,
+             "QUALITY:FRACTION: on that fraction of the iterations the "
+             "decoder reads the render through a real JPEG round trip at "
+             "QUALITY (gradient straight through), for leaks saved as JPEG "
+             "screenshots; or none");
   parser.Add("margin", &a.margin,
              "Push every logit at least this far past 0 (0 = plain BCE)");
   parser.Add("fidelity", &a.fidelity,
@@ -357,6 +383,7 @@ int RunEmbed(int argc, char** argv) {
   options.free_view_fraction = a.free_view_fraction;
   options.free_view_neighbors = a.free_view_neighbors;
   options.decoder_jitter = ParseDecoderJitter(a.decoder_jitter);
+  ParseJpegLayer(a.jpeg_layer, &options);
   options.margin = a.margin;
   if (a.fidelity != "photos" && a.fidelity != "input") {
     Fail("--fidelity: photos or input");

@@ -26,6 +26,7 @@
 #include "watermark/extractor.h"
 #include "watermark/feature_decoder.h"
 #include "watermark/hidden_model.h"
+#include "watermark/image_attacks.h"
 #include "watermark/network_file.h"
 
 namespace watergs {
@@ -236,6 +237,68 @@ TEST(MessageBce, MarginShiftsTheLossButNotTheBitErrors) {
   std::vector<float> plain;
   MessageBce(logits, targets, gamma, &plain, nullptr);
   EXPECT_LT(std::abs(plain[0]), std::abs(dlogits[0]));
+}
+
+// The JPEG layer's message term is that of the JPEG-compressed crop (value,
+// bit errors, reference), and its gradient is the compressed crop's image
+// gradient placed at the crop unchanged (straight through), zero elsewhere;
+// the compression does change the logits (a layer that skipped it would
+// equal the plain term).
+TEST(MessageBce, JpegLayerReadsTheCompressedCropWithAStraightThroughGradient) {
+  Scene s = MakeScene(1, 40, 30);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  Decoder decoder(&net);
+  ImageRGB image;
+  MakeCpuRasterizer()->Forward(s.model, s.views.Camera(0), {}, &image, nullptr);
+  for (float& x : image.data) x = std::clamp(x, 0.f, 1.f);
+  const Bits message = RandomBits(16, 3);
+  const std::vector<float> targets(message.begin(), message.end());
+  const std::vector<float> reference(16, 0.25f);
+  const PixelRect crop{5, 3, 24, 20};
+  const int quality = 50;
+  ImageRGB cropped;
+  CropImage(image, crop, &cropped);
+  ImageAttackSpec jpeg;
+  jpeg.kind = ImageAttackKind::kJpeg;
+  jpeg.value = quality;
+  const ImageRGB compressed = ApplyImageAttack(jpeg, cropped);
+  ImageRGB expected_grad(compressed.width, compressed.height);
+  int expected_errors = -1;
+  const double expected =
+      AddMessageLoss(decoder, compressed, PixelRect{}, targets, 0.7,
+                     &expected_grad, &expected_errors, 0.5, &reference);
+  ImageRGB grad(image.width, image.height);
+  int errors = -1;
+  const double bce = AddJpegMessageLoss(decoder, image, crop, quality, targets,
+                                        0.7, &grad, &errors, 0.5, &reference);
+  EXPECT_EQ(bce, expected);
+  EXPECT_EQ(errors, expected_errors);
+  double outside = 0, inside_difference = 0, inside = 0;
+  for (int y = 0; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) {
+      const bool in = x >= crop.x0 && x < crop.x0 + crop.width &&
+                      y >= crop.y0 && y < crop.y0 + crop.height;
+      for (int c = 0; c < 3; ++c) {
+        const float g = grad.At(x, y)[c];
+        if (!in) {
+          outside += std::abs(g);
+          continue;
+        }
+        const float e = expected_grad.At(x - crop.x0, y - crop.y0)[c];
+        inside_difference += std::abs(g - e);
+        inside += std::abs(e);
+      }
+    }
+  }
+  EXPECT_EQ(outside, 0.0);
+  EXPECT_EQ(inside_difference, 0.0);
+  EXPECT_GT(inside, 0.0);
+  ImageRGB plain_grad(image.width, image.height);
+  const double plain = AddMessageLoss(decoder, image, crop, targets, 0.7,
+                                      &plain_grad, nullptr, 0.5, &reference);
+  EXPECT_GT(std::abs(plain - bce), 1e-6)
+      << "JPEG " << quality << " left the logits unchanged";
 }
 
 // 40 iterations on the tiny scene. Whole frames: a random decoder does not

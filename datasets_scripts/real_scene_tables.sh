@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# The paper's Table 1 and the single-view figures on one real scene (an LLFF workspace laid out by
+# download_llff.sh), at settings that finish on 2 cores: trains the raw model once (--eval: every
+# 8th photo held out), then for each embedding run RUN=READING:SEED embeds with embed's defaults
+# for that reading (single_view_probe.sh: the held-out views and 12 free viewpoints read one by
+# one, PSNR against the photos and against the raw renders) and evaluates the paper's four 3D
+# distortions on the held-out views (eval: BER per rendered image, PSNR, SSIM). Resumable: every
+# finished step is kept and skipped on a re-run (the training checkpoints every 500 iterations).
+#   datasets_scripts/real_scene_tables.sh SCENE OUT [RUN ...]   (default runs: owner:0 owner:1 owner:2 blind:0)
+# Writes OUT/tables.md (aggregate_real_scene.py) and OUT/times.txt (seconds per stage).
+# Environment: WATERGS_BIN, DECODER, DOWNSCALE (2), ITERATIONS (7000; densification to half of it),
+# EMBED_ARGS (extra embed options for every run, e.g. --stop_margin 1).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+scene=${1:?usage: real_scene_tables.sh SCENE OUT [READING:SEED ...]}
+out=${2:?usage: real_scene_tables.sh SCENE OUT [READING:SEED ...]}
+shift 2
+runs=("$@")
+[ ${#runs[@]} -eq 0 ] && runs=(owner:0 owner:1 owner:2 blind:0)
+bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
+decoder="${DECODER:-$root/watermark/models/decoder_48.bin}"
+ds="${DOWNSCALE:-2}"
+iterations="${ITERATIONS:-7000}"
+msg=text:WGS-26
+[ -d "$scene/images" ] || { echo "real_scene_tables: $scene/images: no such folder" >&2; exit 1; }
+mkdir -p "$out"
+raw="$out/raw/point_cloud.ply"
+log() { echo "real_scene_tables: $*" >&2; }
+timed() {  # STAGE COMMAND...: runs it, appends "STAGE SECONDS" to OUT/times.txt
+  local stage=$1 t0=$SECONDS; shift
+  "$@"
+  echo "$stage $((SECONDS - t0))" >> "$out/times.txt"
+}
+
+if [ ! -f "$raw" ]; then
+  resume=()
+  [ -f "$out/raw/checkpoint.ckpt" ] && resume=(--resume)
+  log "training the raw model ($iterations iterations, downscale $ds) -> $out/raw (log $out/raw.log)"
+  timed train "$bin" train --workspace_path "$scene" --output_path "$out/raw" --downscale "$ds" --eval \
+    --iterations "$iterations" --densify_until_iter $((iterations / 2)) --checkpoint_every 500 \
+    --test_iterations "$((iterations / 2)),$iterations" --log_every 100 "${resume[@]}" >> "$out/raw.log" 2>&1
+fi
+
+for run in "${runs[@]}"; do
+  reading=${run%%:*}; seed=${run##*:}
+  label="${reading}_seed$seed"
+  dir="$out/probe/runs/$label"
+  if ! grep -q "^$label " "$out/probe/results.txt" 2>/dev/null; then
+    log "embedding $label (log $dir/embed.log)"
+    # shellcheck disable=SC2086
+    timed "embed+read:$label" env SCENE="$scene" RAW="$raw" DOWNSCALE="$ds" DECODER="$decoder" \
+      WATERGS_BIN="$bin" bash "$root/datasets_scripts/single_view_probe.sh" "$out/probe" "$label" \
+      --reading "$reading" --seed "$seed" ${EMBED_ARGS:-}
+  fi
+  if [ ! -f "$dir/table1.json" ]; then
+    log "Table 1 distortions for $label"
+    timed "eval:$label" "$bin" eval --raw_path "$raw" --input_path "$dir/wm.ply" --workspace_path "$scene" \
+      --downscale "$ds" --decoder "$decoder" --message "$msg" --views test \
+      --attacks identity,gn:0.01,dropout:0.1,crop:0.1 --image_attacks '' --lpips_weights '' \
+      --output_path "$dir/table1" > "$dir/table1.txt" 2>&1
+  fi
+done
+/usr/bin/python3 "$root/datasets_scripts/aggregate_real_scene.py" "$out" > "$out/tables.md.part"
+mv "$out/tables.md.part" "$out/tables.md"
+log "wrote $out/tables.md"
