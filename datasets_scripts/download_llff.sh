@@ -12,7 +12,8 @@
 #   --from DIR  lay out the scenes from a local copy instead of the archive: DIR holds <scene>/ folders
 #               directly or under nerf_llff_data/, data/ or data/nerf_llff_data/ (an unpacked archive, or
 #               a clone of a repository that carries LLFF scenes, e.g. github luo-ziyuan/CopyRNeRF-code for
-#               fern, bwnebs1/23-2_DSL_Modeling_3D_Style_with_NeRF for room and trex).
+#               fern: its images.bin is missing, see docs/reproduce.md; the room and trex of
+#               bwnebs1/23-2_DSL_Modeling_3D_Style_with_NeRF are style-transferred, not photos).
 # Every scene gets OUT/<scene>/photos.sha256, the SHA-256 of each photo and model file, so a figure can
 # name the exact files it came from (results/real_llff/ keeps a copy; the photos are not committed).
 # Source: the NeRF authors' Google Drive folder

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # The paper's Table 1 and the single-view figures on one real scene (an LLFF workspace laid out by
 # download_llff.sh), at settings that finish on 2 cores: trains the raw model once (--eval: every
-# 8th photo held out), then for each embedding run RUN=READING:SEED embeds with embed's defaults
-# for that reading (single_view_probe.sh: the held-out views and 12 free viewpoints read one by
-# one, PSNR against the photos and against the raw renders) and evaluates the paper's four 3D
-# distortions on the held-out views (eval: BER per rendered image, PSNR, SSIM). Resumable: every
-# finished step is kept and skipped on a re-run (the training checkpoints every 500 iterations).
+# 8th photo held out), then for each embedding run READING:SEED (READING:SEED:M adds
+# --stop_margin M) embeds with embed's defaults for that reading (single_view_probe.sh: the
+# held-out views and 12 free viewpoints read one by one, PSNR against the photos and against the
+# raw renders) and evaluates the paper's four 3D distortions on the held-out views (eval: BER per
+# rendered image, PSNR, SSIM). Resumable: every finished step is kept and skipped on a re-run (the
+# training checkpoints every 500 iterations).
 #   datasets_scripts/real_scene_tables.sh SCENE OUT [RUN ...]   (default runs: owner:0 owner:1 owner:2 blind:0)
 # Writes OUT/tables.md (aggregate_real_scene.py) and OUT/times.txt (seconds per stage).
 # Environment: WATERGS_BIN, DECODER, DOWNSCALE (2), ITERATIONS (7000; densification to half of it),
@@ -42,15 +43,20 @@ if [ ! -f "$raw" ]; then
 fi
 
 for run in "${runs[@]}"; do
-  reading=${run%%:*}; seed=${run##*:}
+  IFS=: read -r reading seed stop <<< "$run"
   label="${reading}_seed$seed"
+  stop_args=()
+  if [ -n "$stop" ]; then
+    label+="_stop$stop"
+    stop_args=(--stop_margin "$stop")
+  fi
   dir="$out/probe/runs/$label"
   if ! grep -q "^$label " "$out/probe/results.txt" 2>/dev/null; then
     log "embedding $label (log $dir/embed.log)"
     # shellcheck disable=SC2086
     timed "embed+read:$label" env SCENE="$scene" RAW="$raw" DOWNSCALE="$ds" DECODER="$decoder" \
       WATERGS_BIN="$bin" bash "$root/datasets_scripts/single_view_probe.sh" "$out/probe" "$label" \
-      --reading "$reading" --seed "$seed" ${EMBED_ARGS:-}
+      --reading "$reading" --seed "$seed" "${stop_args[@]}" ${EMBED_ARGS:-}
   fi
   if [ ! -f "$dir/table1.json" ]; then
     log "Table 1 distortions for $label"

@@ -122,16 +122,6 @@ void ReadModel(Reader& r, const std::string& path, GaussianModel* m) {
 
 }  // namespace
 
-uint64_t Fnv1a64(const void* data, size_t size) {
-  const auto* p = static_cast<const uint8_t*>(data);
-  uint64_t hash = 0xcbf29ce484222325ull;
-  for (size_t i = 0; i < size; ++i) {
-    hash ^= p[i];
-    hash *= 0x100000001b3ull;
-  }
-  return hash;
-}
-
 void WriteCheckpoint(const std::string& path, const TrainingCheckpoint& c) {
   Writer w;
   w.Raw(kMagic, sizeof(kMagic));

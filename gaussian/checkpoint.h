@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "gaussian/adam.h"
+#include "gaussian/file_util.h"
 #include "gaussian/gaussian_model.h"
 
 namespace watergs {
@@ -48,8 +49,5 @@ void WriteCheckpoint(const std::string& path,
 // Reads a checkpoint; throws Error("<path>: ...") if missing, not a
 // checkpoint, of another version, truncated or failing its checksum.
 TrainingCheckpoint ReadCheckpoint(const std::string& path);
-
-// FNV-1a 64-bit hash of `size` bytes (the checkpoint checksum).
-uint64_t Fnv1a64(const void* data, size_t size);
 
 }  // namespace watergs

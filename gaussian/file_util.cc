@@ -17,6 +17,16 @@
 #include "gaussian/error.h"
 
 namespace watergs {
+
+uint64_t Fnv1a64(const void* data, size_t size) {
+  const auto* p = static_cast<const uint8_t*>(data);
+  uint64_t hash = 0xcbf29ce484222325ull;
+  for (size_t i = 0; i < size; ++i) {
+    hash ^= p[i];
+    hash *= 0x100000001b3ull;
+  }
+  return hash;
+}
 namespace {
 
 std::string TemporaryPathFor(const std::string& path) {

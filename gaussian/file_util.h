@@ -10,6 +10,11 @@
 
 namespace watergs {
 
+// FNV-1a 64-bit hash of `size` bytes, the standard function (offset basis
+// 0xcbf29ce484222325, prime 0x100000001b3): the integrity checksum of
+// checkpoints and network files, and the files' fingerprint in reports.
+uint64_t Fnv1a64(const void* data, size_t size);
+
 // Reads a whole file; throws Error("<path>: ...") if missing or unreadable.
 std::vector<uint8_t> ReadFileBytes(const std::string& path);
 

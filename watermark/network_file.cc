@@ -83,7 +83,10 @@ const TensorRecord* NetworkFile::Find(const std::string& name) const {
   return nullptr;
 }
 
-uint64_t Fnv1a64(const uint8_t* data, size_t size) {
+namespace {
+
+// Version 1's checksum: FNV-1a from a mistyped offset basis.
+uint64_t LegacyFnv1a64(const uint8_t* data, size_t size) {
   uint64_t hash = 1469598103934665603ull;
   for (size_t i = 0; i < size; ++i) {
     hash ^= data[i];
@@ -91,6 +94,8 @@ uint64_t Fnv1a64(const uint8_t* data, size_t size) {
   }
   return hash;
 }
+
+}  // namespace
 
 std::string SerializeNetworkFile(const NetworkFile& file) {
   std::string out(kMagic, sizeof(kMagic));
@@ -127,14 +132,16 @@ NetworkFile ParseNetworkFile(const std::string& path,
     FailAt(path, "not a watergs network file (bad magic)");
   Reader header(path, bytes.data() + sizeof(kMagic), 4);
   const uint32_t version = header.Get<uint32_t>();
-  if (version != kNetworkFileVersion)
+  if (version != 1 && version != kNetworkFileVersion)
     FailAt(path, "unsupported network file version " + std::to_string(version) +
-                     " (this build reads " +
+                     " (this build reads 1 to " +
                      std::to_string(kNetworkFileVersion) + ")");
   const size_t payload = bytes.size() - 8;
   uint64_t stored;
   std::memcpy(&stored, bytes.data() + payload, 8);
-  if (Fnv1a64(bytes.data(), payload) != stored)
+  const uint64_t checksum = version == 1 ? LegacyFnv1a64(bytes.data(), payload)
+                                         : Fnv1a64(bytes.data(), payload);
+  if (checksum != stored)
     FailAt(path,
            "checksum mismatch: the network file is corrupted or truncated");
 

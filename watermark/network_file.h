@@ -44,10 +44,11 @@ struct NetworkFile {
   const TensorRecord* Find(const std::string& name) const;
 };
 
-inline constexpr uint32_t kNetworkFileVersion = 1;
-
-// FNV-1a 64-bit hash of `size` bytes.
-uint64_t Fnv1a64(const uint8_t* data, size_t size);
+// Version 2 files end with the standard FNV-1a 64 checksum (Fnv1a64,
+// gaussian/file_util.h) of the bytes before it; version 1 files (written
+// before 2026-11-27) with FNV-1a from an offset basis one digit short
+// (1469598103934665603), still read.
+inline constexpr uint32_t kNetworkFileVersion = 2;
 
 // The file's bytes, checksum included.
 std::string SerializeNetworkFile(const NetworkFile& file);

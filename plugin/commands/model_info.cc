@@ -7,6 +7,7 @@
 #include "plugin/model_analyzer.h"
 #include "plugin/option_parser.h"
 #include "plugin/pose_comparison.h"
+#include "plugin/poses_bounds.h"
 #include "plugin/reconstruction_io.h"
 
 namespace {
@@ -20,8 +21,10 @@ int RunModelInfo(int argc, char** argv) {
   parser.AddRequired("input_path", &input_path,
                      "Sparse model folder, or a workspace holding sparse/0");
   parser.Add("reference_path", &reference_path,
-             "A model of the same photos (e.g. from known poses): print how "
-             "far the camera poses are from it, up to a similarity");
+             "A model of the same photos (e.g. from known poses), or an LLFF "
+             "poses_bounds.npy (rows named by the sorted images/ beside it): "
+             "print how far the camera poses are from it, up to a "
+             "similarity");
   if (!parser.Parse(argc, argv)) return 0;
   const std::string model_path = watergs::FindModelPath(input_path);
   const watergs::Reconstruction reconstruction =
@@ -35,9 +38,16 @@ int RunModelInfo(int argc, char** argv) {
             << watergs::FormatModelSummary(
                    watergs::AnalyzeModel(reconstruction));
   if (!reference_path.empty()) {
-    std::cout << watergs::FormatPoseComparison(watergs::ComparePoses(
-        reconstruction,
-        watergs::ReadReconstruction(watergs::FindModelPath(reference_path))));
+    const bool npy = reference_path.size() > 4 &&
+                     reference_path.substr(reference_path.size() - 4) == ".npy";
+    const watergs::Reconstruction reference =
+        npy ? watergs::ReadPosesBounds(
+                  reference_path,
+                  watergs::PosesBoundsImageNames(reference_path))
+            : watergs::ReadReconstruction(
+                  watergs::FindModelPath(reference_path));
+    std::cout << watergs::FormatPoseComparison(
+        watergs::ComparePoses(reconstruction, reference));
   }
   return 0;
 }

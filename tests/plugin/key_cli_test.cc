@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "gaussian/file_util.h"
@@ -82,6 +83,33 @@ TEST(KeyCli, OnlyTheKeyedClaimReadsPresent) {
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.output.find(dir / "nokey"), std::string::npos)
       << missing.output;
+
+  // eval under the key: the identity row reads "present"; without the key
+  // (the raw message claimed) it does not.
+  auto eval_verdict = [&](const std::string& key_option,
+                          const std::string& name) {
+    const std::string prefix = dir / name;
+    const auto run = RunCommand(
+        WatergsBin() + " eval --raw_path " + (dir / "raw.ply") +
+        " --input_path " + (dir / "wm.ply") + " --workspace_path " +
+        wo.workspace_path + " --decoder " + kDecoder + " --message " +
+        kMessage + key_option +
+        " --attacks identity --image_attacks '' --lpips_weights '' --views "
+        "all --output_path " +
+        prefix);
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    const nlohmann::json report =
+        nlohmann::json::parse(std::ifstream(prefix + ".json"));
+    for (const auto& row : report["robustness"]) {
+      if (row["model"] == "watermarked" && row["attack"] == "identity") {
+        return row["verdict"].get<std::string>();
+      }
+    }
+    return std::string("no identity row");
+  };
+  EXPECT_EQ(eval_verdict(" --key '" + kKey + "'", "eval_keyed"),
+            "watermark present");
+  EXPECT_NE(eval_verdict("", "eval_unkeyed"), "watermark present");
 
   // detect on the renders as image files, with and without the key.
   const Workspace workspace = Workspace::Open(wo);

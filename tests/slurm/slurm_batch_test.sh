@@ -14,7 +14,8 @@
 #      recorded as interrupted, and the resubmission resumes it from its checkpoint ("resumed at
 #      iteration") to a watermarked PLY byte-identical to the uninterrupted run of step 1.
 # Exit 77 (CTest skip) only when the Slurm daemons cannot start here, with the reason; with
-# WATERGS_REQUIRE_SLURM=1 that is a failure too.
+# WATERGS_REQUIRE_SLURM=1 that is a failure too (CTest sets it, so the README's test command and CI
+# judge alike).
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 bin="${WATERGS_BIN:-$repo/build/plugin/watergs}"

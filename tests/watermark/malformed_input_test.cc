@@ -104,5 +104,43 @@ TEST_F(MalformedWeights, NonFiniteWeightsAreRefused) {
   }
 }
 
+// Version 2 files end with the standard FNV-1a 64 of the bytes before it
+// (written out here: offset basis 14695981039346656037, prime 1099511628211);
+// version 1 files, written before the basis was corrected, with the basis
+// one digit short, and still read; either checksum under the other version
+// is refused, and so is an unknown version.
+TEST_F(MalformedWeights, ChecksumFollowsTheFileVersion) {
+  auto fnv = [](const std::string& bytes, uint64_t basis) {
+    uint64_t hash = basis;
+    for (size_t i = 0; i + 8 < bytes.size(); ++i) {
+      hash ^= uint8_t(bytes[i]);
+      hash *= 1099511628211ull;
+    }
+    return hash;
+  };
+  constexpr uint64_t kStandard = 14695981039346656037ull;
+  constexpr uint64_t kLegacy = 1469598103934665603ull;
+  const size_t version_at = 8;  // after the 8-byte magic
+  auto with = [&](uint32_t version, uint64_t basis) {
+    std::string bytes = SerializeNetworkFile(file_);
+    std::memcpy(bytes.data() + version_at, &version, 4);
+    const uint64_t sum = fnv(bytes, basis);
+    std::memcpy(bytes.data() + bytes.size() - 8, &sum, 8);
+    return bytes;
+  };
+  const std::string written = SerializeNetworkFile(file_);
+  uint32_t version = 0;
+  std::memcpy(&version, written.data() + version_at, 4);
+  EXPECT_EQ(version, 2u);
+  EXPECT_EQ(written, with(2, kStandard));
+  EXPECT_NO_THROW(Decoder::Load(Write("v2.bin", with(2, kStandard))));
+  EXPECT_NO_THROW(Decoder::Load(Write("v1.bin", with(1, kLegacy))));
+  ExpectRefused(Write("v1_standard.bin", with(1, kStandard)),
+                "checksum mismatch");
+  ExpectRefused(Write("v2_legacy.bin", with(2, kLegacy)), "checksum mismatch");
+  ExpectRefused(Write("v3.bin", with(3, kStandard)),
+                "unsupported network file version 3");
+}
+
 }  // namespace
 }  // namespace watergs
