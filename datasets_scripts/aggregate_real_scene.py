@@ -44,9 +44,10 @@ def load(path):
 
 
 def row_reading(row, reading):
-    """(per-view BERs, aggregated bit errors) of an eval robustness row in a reading."""
+    """(mean of the views' own BERs, aggregated bit errors) of an eval robustness row in a
+    reading (eval's JSON: view_ber holds min / median / mean / p90 / max over the views)."""
     source = row["owner"] if reading == "owner" else row
-    return source["view_ber"], source["bit_errors"]
+    return source["view_ber"]["mean"], source["bit_errors"]
 
 
 def main(out):
@@ -80,8 +81,8 @@ def main(out):
         for reading in ("owner", "blind"):
             cells = []
             for attack in ATTACKS:
-                views, errors = row_reading(rows[attack], reading)
-                cells.append(f"{100 * mean(views):.2f}% ({errors}/48 agg)")
+                per_image, errors = row_reading(rows[attack], reading)
+                cells.append(f"{100 * per_image:.2f}% ({errors}/48 agg)")
             psnr_raw = f"{raw_q['psnr']:.2f}" if "psnr" in raw_q else "n/a"
             lines.append(f"| {label} | {reading} | " + " | ".join(cells) +
                          f" | {psnr_raw} -> {wm_q['psnr']:.2f} | {wm_q['ssim']:.4f} | {vs_raw:.2f} |")

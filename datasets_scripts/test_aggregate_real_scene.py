@@ -24,9 +24,15 @@ def write(path, data):
         json.dump(data, f)
 
 
+def stats(views):
+    """eval's view_ber: statistics over the views' own BERs."""
+    return {"min": min(views), "max": max(views), "mean": sum(views) / len(views),
+            "median": sorted(views)[len(views) // 2], "p90": max(views)}
+
+
 def robustness_row(attack, blind_views, owner_views):
-    return {"model": "watermarked", "attack": attack, "view_ber": blind_views, "bit_errors": 9,
-            "owner": {"view_ber": owner_views, "bit_errors": 1}}
+    return {"model": "watermarked", "attack": attack, "view_ber": stats(blind_views), "bit_errors": 9,
+            "ber": 9 / 48, "owner": {"view_ber": stats(owner_views), "bit_errors": 1, "ber": 1 / 48}}
 
 
 class AggregateRealScene(unittest.TestCase):
@@ -46,8 +52,8 @@ class AggregateRealScene(unittest.TestCase):
             run = f"{out}/probe/runs/owner_seed0"
             rows = [robustness_row(a, [0.5, 0.25], [0.0, 0.125])
                     for a in ("identity", "gn:0.01", "dropout:0.1", "crop:0.1")]
-            rows.append({"model": "raw", "attack": "identity", "view_ber": [0.9, 0.9], "bit_errors": 30,
-                         "owner": {"view_ber": [1.0, 1.0], "bit_errors": 48}})
+            rows.append({"model": "raw", "attack": "identity", "view_ber": stats([0.9, 0.9]),
+                         "bit_errors": 30, "owner": {"view_ber": stats([1.0, 1.0]), "bit_errors": 48}})
             write(f"{run}/table1.json", {"num_bits": 48, "robustness": rows, "quality": [
                 {"comparison": "watermarked vs ground truth", "mean": {"psnr": 21.5, "ssim": 0.55}},
                 {"comparison": "raw vs ground truth", "mean": {"psnr": 22.0, "ssim": 0.6}},

@@ -488,10 +488,18 @@ int RunEmbed(int argc, char** argv) {
       MeasureFidelity(embedder.rasterizer(), raw, embedder.model(), views,
                       options.check_views, options.background)
           .psnr_vs_raw;
+  // The run stopped at the check that met --stop_margin, else at
+  // --patience checks at BER 0.
+  const bool read_past_margin =
+      options.stop_margin > 0 && after.weakest_margin >= options.stop_margin;
   std::printf("embed: %lld iterations in %s%s, %zu Gaussians\n",
               static_cast<long long>(embedder.iteration()),
               FormatDuration(seconds).c_str(),
-              early ? " (stopped early: check BER 0)" : "",
+              !early ? ""
+              : read_past_margin
+                  ? " (stopped: every check view and free viewpoint read past "
+                    "--stop_margin)"
+                  : " (stopped early: check BER 0)",
               embedder.model().size());
   std::printf(
       "embed: check views (%zu): BER %.2f%% -> %.2f%% (mean of views), "
