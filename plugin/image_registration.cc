@@ -24,6 +24,19 @@ cv::Mat Grey(const ImageRGB& image) {
   return grey8;
 }
 
+// A SIFT keypoint's position in the convention of RenderCamera and COLMAP (a
+// pixel's centre at col + 0.5), `scale` times smaller than the image it was
+// found in. OpenCV puts a pixel's centre at col, and its SIFT (4.x, without
+// precise upscaling) halves positions found in a double-size first octave made
+// by a linear resize, which reports them 0.25 px past OpenCV's centre: 0.25
+// more makes COLMAP's. Left uncorrected, every pose came out 0.35 px off
+// (ImageRegistration.PhotosLeftOutOfTheIndexRegisterWhereTheyWereTaken).
+cv::Point2f PixelPosition(const cv::KeyPoint& k, double scale = 1) {
+  constexpr float kSiftToPixelCentre = 0.25f;
+  return (k.pt + cv::Point2f(kSiftToPixelCentre, kSiftToPixelCentre)) *
+         float(1 / scale);
+}
+
 cv::Matx33d Intrinsics(const RenderCamera& c) {
   return {c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1};
 }
@@ -40,6 +53,20 @@ double RmsError(const std::vector<cv::Point3d>& object,
     sum += d.dot(d);
   }
   return std::sqrt(sum / std::max<size_t>(1, pixels.size()));
+}
+
+// `camera` with intrinsics K and OpenCV's pose (rvec, tvec).
+RenderCamera WithPose(RenderCamera camera, const cv::Matx33d& K,
+                      const cv::Mat& rvec, const cv::Mat& tvec) {
+  cv::Mat R;
+  cv::Rodrigues(rvec, R);
+  cv::cv2eigen(R, camera.R);
+  cv::cv2eigen(tvec, camera.t);
+  camera.fx = K(0, 0);
+  camera.fy = K(1, 1);
+  camera.cx = K(0, 2);
+  camera.cy = K(1, 2);
+  return camera;
 }
 
 }  // namespace
@@ -87,7 +114,7 @@ ImageRegistrar::ImageRegistrar(const Workspace& workspace,
       double best = max_d2;
       int found = -1;
       for (size_t j = 0; j < projected.size(); ++j) {
-        const cv::Point2f d = keypoints[k].pt - projected[j];
+        const cv::Point2f d = PixelPosition(keypoints[k]) - projected[j];
         const double d2 = d.dot(d);
         if (d2 <= best) best = d2, found = int(j);
       }
@@ -115,14 +142,14 @@ Registration ImageRegistrar::Register(const ImageRGB& image) const {
   // A smaller copy is searched at the photos' scale (its features would be
   // too few and too coarse), then the positions scaled back.
   cv::Mat grey = Grey(image);
-  const double up = std::max(1.0, double(reference_.width) / image.width);
+  double up = std::max(1.0, double(reference_.width) / image.width);
   if (up > 1.05) {
     cv::resize(grey, grey, cv::Size(), up, up, cv::INTER_CUBIC);
+    up = double(grey.cols) / image.width;  // the size was rounded
+  } else {
+    up = 1;
   }
   index_->sift->detectAndCompute(grey, cv::noArray(), keypoints, descriptors);
-  if (up > 1.05) {
-    for (cv::KeyPoint& k : keypoints) k.pt *= float(1 / up);
-  }
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> pixels;
   if (!keypoints.empty()) {
@@ -133,7 +160,7 @@ Registration ImageRegistrar::Register(const ImageRGB& image) const {
         continue;
       }
       object.push_back(index_->points[size_t(m[0].trainIdx)]);
-      pixels.push_back(keypoints[size_t(m[0].queryIdx)].pt);
+      pixels.push_back(PixelPosition(keypoints[size_t(m[0].queryIdx)], up));
     }
   }
   r.matches = int(object.size());
@@ -190,6 +217,7 @@ Registration ImageRegistrar::Register(const ImageRGB& image) const {
   cv::solvePnP(in_object, in_pixels, K, cv::noArray(), rvec, tvec, true,
                cv::SOLVEPNP_ITERATIVE);
   r.rms_px = RmsError(in_object, in_pixels, K, rvec, tvec);
+  r.guessed_camera = WithPose(camera, K, rvec, tvec);
   // Focal length and principal point refined with the pose (a crop or a
   // resize changed them); kept only if the fit improves and stays sane.
   {
@@ -220,14 +248,15 @@ Registration ImageRegistrar::Register(const ImageRGB& image) const {
       // Degenerate geometry: keep the PnP pose at the guessed intrinsics.
     }
   }
-  cv::Mat R;
-  cv::Rodrigues(rvec, R);
-  cv::cv2eigen(R, camera.R);
-  cv::cv2eigen(tvec, camera.t);
-  camera.fx = K(0, 0);
-  camera.fy = K(1, 1);
-  camera.cx = K(0, 2);
-  camera.cy = K(1, 2);
+  camera = WithPose(camera, K, rvec, tvec);
+  std::vector<double> depths;
+  for (const cv::Point3d& X : in_object) {
+    depths.push_back(
+        (camera.R * Eigen::Vector3d(X.x, X.y, X.z) + camera.t).z());
+  }
+  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2,
+                   depths.end());
+  r.depth = depths[depths.size() / 2];
   r.camera = camera;
   r.registered = true;
   return r;

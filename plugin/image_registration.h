@@ -41,9 +41,16 @@ struct Registration {
   bool registered = false;
   // The pinhole camera of the image (its size, refined intrinsics).
   RenderCamera camera;
+  // The pose solved at the guessed intrinsics (the workspace camera's,
+  // centred on the image, scaled for a resize) before they were refined: a
+  // second start for a photometric refinement.
+  RenderCamera guessed_camera;
   // Ratio-test matches, RANSAC inliers, inlier RMS reprojection (pixels).
   int matches = 0, inliers = 0;
   double rms_px = 0;
+  // Median depth of the inliers' SfM points in front of the camera (world
+  // units): the scale a pose refinement moves at.
+  double depth = 0;
   // Why not registered (one line), empty when registered.
   std::string why;
 };

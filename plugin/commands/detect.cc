@@ -27,6 +27,7 @@
 #include "plugin/command.h"
 #include "plugin/image_registration.h"
 #include "plugin/option_parser.h"
+#include "plugin/photometric_refinement.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"
@@ -112,7 +113,8 @@ std::string Percent(double fraction) {
 // left out, each with a one-line reason).
 struct OwnerImages {
   std::vector<ViewDecode> views;  // differences, registered images only
-  std::vector<Registration> registrations;  // per image
+  std::vector<Registration> registrations;     // per image
+  std::vector<PhotometricResult> refinements;  // per image
 };
 
 OwnerImages ReadAsOwner(const std::vector<std::string>& files,
@@ -120,20 +122,30 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
                         const std::vector<ViewDecode>& decoded,
                         const std::string& raw_path,
                         WorkspaceOptions workspace_options, Device device,
-                        BitDecoder& decoder, const Bits* expected) {
+                        bool refine, BitDecoder& decoder,
+                        const Bits* expected) {
   const ModelData raw = ReadModelFile(raw_path);
   const Workspace workspace = Workspace::Open(workspace_options);
   const WorkspaceViews views(workspace);
   const ImageRegistrar registrar(workspace, views);
   const std::unique_ptr<Rasterizer> rasterizer = MakeRasterizer(device);
   OwnerImages out;
+  const CameraRenderer render = [&](const RenderCamera& camera) {
+    return RenderClamped(*rasterizer, raw.model, camera, {0.f, 0.f, 0.f});
+  };
   for (size_t k = 0; k < files.size(); ++k) {
     Registration r = registrar.Register(images[k]);
+    PhotometricResult refined;
+    if (r.registered && refine) {
+      refined = RefinePhotometrically(images[k], {r.camera, r.guessed_camera},
+                                      r.depth, render);
+      r.camera = refined.camera;
+    }
+    out.refinements.push_back(refined);
     if (r.registered) {
       ViewDecode reference;
       reference.name = files[k];
-      reference.logits = decoder.Logits(
-          RenderClamped(*rasterizer, raw.model, r.camera, {0.f, 0.f, 0.f}));
+      reference.logits = decoder.Logits(render(r.camera));
       std::vector<ViewDecode> one =
           DifferenceViews({decoded[k]}, {reference}, expected);
       out.views.push_back(std::move(one[0]));
@@ -151,6 +163,7 @@ int RunDetect(int argc, char** argv) {
   int max_side = 0;
   int decode_width = 0;
   int num_threads = 0;
+  bool refine = true;
   OptionParser parser(
       "detect",
       "Decodes the WATER-GS watermark from image files (screenshots, video "
@@ -185,6 +198,11 @@ int RunDetect(int argc, char** argv) {
   parser.Add("workspace_path", &workspace_options.workspace_path,
              "COLMAP workspace the images are registered to (with "
              "--raw_path)");
+  parser.Add("refine_pose", &refine,
+             "After registration, move each camera to where the raw model's "
+             "render matches the image best (photometric least squares): "
+             "the difference reading needs the render within a fraction of "
+             "a pixel");
   parser.Add("sparse_path", &workspace_options.input_path,
              "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("workspace_images", &workspace_options.image_path,
@@ -250,7 +268,7 @@ int RunDetect(int argc, char** argv) {
   OwnerImages owner;
   if (!raw_path.empty()) {
     owner = ReadAsOwner(files, decoded_images, views, raw_path,
-                        workspace_options, parser.device(), *decoder,
+                        workspace_options, parser.device(), refine, *decoder,
                         expected.empty() ? nullptr : &expected);
   }
   std::printf("detect: %zu images, %d-bit decoder %s\n", files.size(), num_bits,
@@ -319,12 +337,18 @@ int RunDetect(int argc, char** argv) {
         for (int i = 0; i < num_bits; ++i) bits[i] = v.logits[i] > 0;
         const int errors = HammingDistance(bits, expected);
         const double p = BinomialTailPValue(num_bits - errors, num_bits);
+        const PhotometricResult& f = owner.refinements[k];
+        char moved[48] = "";
+        if (f.applied) {
+          std::snprintf(moved, sizeof(moved), ", refined by %.2f px",
+                        f.moved_px);
+        }
         std::printf(
             "detect (owner's reading): %s: registered (%d inliers of %d "
-            "matches, %.2f px): %d of %d bits wrong (BER %s), p-value %.3g, "
-            "%s\n",
-            files[k].c_str(), g.inliers, g.matches, g.rms_px, errors, num_bits,
-            Percent(double(errors) / num_bits).c_str(), p,
+            "matches, %.2f px%s): %d of %d bits wrong (BER %s), p-value "
+            "%.3g, %s\n",
+            files[k].c_str(), g.inliers, g.matches, g.rms_px, moved, errors,
+            num_bits, Percent(double(errors) / num_bits).c_str(), p,
             ToString(Decide(p, thresholds)).c_str());
       }
       owned =
@@ -391,6 +415,12 @@ int RunDetect(int argc, char** argv) {
                             {"inliers", g.inliers}};
         if (g.registered) {
           e["rms_px"] = g.rms_px;
+          const PhotometricResult& f = owner.refinements[k];
+          e["refinement"] = {{"applied", f.applied},
+                             {"moved_px", f.moved_px},
+                             {"rms_before", f.rms_before},
+                             {"rms_after", f.rms_after},
+                             {"renders", f.renders}};
           const RenderCamera& c = g.camera;
           e["camera"] = {
               {"fx", c.fx},

@@ -62,6 +62,7 @@ double MeanProjectionGap(const DemoWorkspace& d, size_t view,
 
 TEST(ImageRegistration, PhotosLeftOutOfTheIndexRegisterWhereTheyWereTaken) {
   DemoWorkspace d;
+  std::vector<double> gaps;  // pixels, every image registered below
   for (size_t view : {size_t(8), size_t(21), size_t(40)}) {
     RegistrationOptions options;
     options.skip_views = {view};
@@ -106,7 +107,17 @@ TEST(ImageRegistration, PhotosLeftOutOfTheIndexRegisterWhereTheyWereTaken) {
     const Registration s = registrar.Register(small);
     ASSERT_TRUE(s.registered) << view << " resized: " << s.why;
     EXPECT_LT(MeanProjectionGap(d, view, s.camera, small_truth), 1.5) << view;
+    gaps.push_back(MeanProjectionGap(d, view, whole.camera, truth));
+    gaps.push_back(MeanProjectionGap(d, view, c.camera, cropped_truth));
+    gaps.push_back(MeanProjectionGap(d, view, s.camera, small_truth));
   }
+  // The owner's reading subtracts a render at the recovered camera, so a
+  // fraction of a pixel matters: 0.20 px measured over these 9 images, 0.35
+  // with SIFT's positions taken in OpenCV's pixel convention, 0.34 with the
+  // half-pixel shift alone.
+  double mean = 0;
+  for (double g : gaps) mean += g / gaps.size();
+  EXPECT_LT(mean, 0.25);
 }
 
 TEST(ImageRegistration, AnImageOfNothingIsNotRegisteredAndSaysWhy) {

@@ -1,0 +1,74 @@
+// Photometric refinement of a registered camera: the owner's reading
+// subtracts the raw model's render at the camera a screenshot was registered
+// to, so the render must sit on the image to a small fraction of a pixel.
+// Feature registration (plugin/image_registration.h) gets within a few
+// tenths of a pixel; this step moves the pose, focal length and principal
+// point to where the blurred render matches the blurred image best in least
+// squares (Ceres' Levenberg-Marquardt, finite-difference Jacobians over
+// renders), the direct alignment of photometric SLAM and bundle adjustment.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "gaussian/camera.h"
+#include "gaussian/image.h"
+
+namespace watergs {
+
+// Renders the raw model at a camera (RGB in [0, 1], the camera's size).
+using CameraRenderer = std::function<ImageRGB(const RenderCamera&)>;
+
+struct PhotometricOptions {
+  // Gaussian blur (pixels) of both images before comparing: widens the basin
+  // and keeps the watermark and JPEG noise out of the fit.
+  double blur_sigma = 1.0;
+  // Finite-difference step, in pixels of motion at the image.
+  double step_px = 0.25;
+  int max_iterations = 10;
+  // A move larger than this (pixels at the image) is a wrong basin: kept out.
+  double max_move_px = 8.0;
+  // After the pose, also the focal length and principal point, kept only
+  // when they lower the residual RMS by this fraction more: at the true
+  // intrinsics their 3 extra degrees of freedom fit noise (0.3-1.5% lower on
+  // the demo's free views, the pose 0.05-0.43 px off instead of 0.03-0.25).
+  bool refine_intrinsics = true;
+  double intrinsics_gain = 0.03;
+};
+
+struct PhotometricResult {
+  bool applied = false;  // the refined camera was kept
+  RenderCamera camera;   // the refined camera, or the input one
+  // RMS of the blurred RGB difference before and after.
+  double rms_before = 0, rms_after = 0;
+  // Largest motion of the image's corners and centre between the two
+  // cameras, pixels (at `depth`).
+  double moved_px = 0;
+  int renders = 0;
+};
+
+// image: H x W RGB; starts: its registered camera first, then other guesses
+// (the same size; e.g. the pose with the workspace's intrinsics), each
+// aligned by its pose alone before the best is aligned in full; depth: a
+// typical depth of the scene in front of it (world units), which scales the
+// translation's steps. Never fails: when nothing better than starts[0] is
+// found, starts[0] comes back with applied = false.
+PhotometricResult RefinePhotometrically(const ImageRGB& image,
+                                        const std::vector<RenderCamera>& starts,
+                                        double depth,
+                                        const CameraRenderer& render,
+                                        const PhotometricOptions& options = {});
+
+// The camera moved by `delta` (9 numbers): rotation (3, radians times fx),
+// translation in the camera frame (3, world units times fx / depth), focal
+// length scale (pixels at the image's edge), principal point (2, pixels).
+// Exposed for the test of its units.
+RenderCamera MoveCamera(const RenderCamera& camera, double depth,
+                        const double* delta);
+
+// Largest distance (pixels) between where `a` and `b` put the points at
+// `depth` behind the image's corners and centre, as seen by `a`.
+double CameraMotionPx(const RenderCamera& a, const RenderCamera& b,
+                      double depth);
+
+}  // namespace watergs
