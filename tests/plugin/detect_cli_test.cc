@@ -5,6 +5,7 @@
 // naming the file.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -118,6 +119,21 @@ TEST(DetectCli, ReadsTheWatermarkFromRenderedImagesAsExtractDoes) {
               extracted.views[v].logits)
         << v;
   }
+  // The single-image spread it reports, from the images' own bit errors:
+  // the mean, and p90 as the smallest count that 90% of images do not
+  // exceed.
+  std::vector<int> errors;
+  for (const auto& image : j["views"]) errors.push_back(image["bit_errors"]);
+  double mean = 0;
+  for (int e : errors) mean += e / 48.0 / errors.size();
+  int p90 = 48;
+  for (int candidate : errors) {
+    const auto at_most = std::count_if(errors.begin(), errors.end(),
+                                       [&](int e) { return e <= candidate; });
+    if (10 * at_most >= 9 * int(errors.size())) p90 = std::min(p90, candidate);
+  }
+  EXPECT_NEAR(j["view_ber"]["mean"].get<double>(), mean, 1e-9);
+  EXPECT_NEAR(j["view_ber"]["p90"].get<double>(), p90 / 48.0, 1e-9);
   EXPECT_EQ(j["recovered_bits"], BitsToString(extracted.recovered));
   EXPECT_EQ(j["p_value"], extracted.p_value);
 
