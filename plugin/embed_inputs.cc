@@ -2,9 +2,11 @@
 #include "plugin/embed_inputs.h"
 
 #include <algorithm>
+#include <cstdio>
 
 #include "gaussian/loss.h"
 #include "gaussian/model_io.h"
+#include "watermark/message.h"
 
 namespace watergs {
 
@@ -21,6 +23,21 @@ EmbedInputs LoadEmbedInputs(const std::string& input_path,
   in.views = std::make_unique<WorkspaceViews>(*in.workspace);
   in.train_views = in.workspace->TrainViews(eval);
   return in;
+}
+
+void PrintKeyNotice(const std::string& command, const std::string& key) {
+  if (!key.empty()) {
+    std::printf(
+        "%s: keyed message; key SHA-256 %s (register it now: a claim is "
+        "evidence only if fixed before the suspect is read)\n",
+        command.c_str(), KeyFingerprint(key).c_str());
+  } else {
+    std::printf(
+        "%s: unkeyed message: its false-positive rate holds only for a claim "
+        "fixed before the suspect is read, and text messages share bits "
+        "(--key makes it exact: docs/verification.md)\n",
+        command.c_str());
+  }
 }
 
 std::vector<size_t> SpreadViews(const std::vector<size_t>& views, int count) {

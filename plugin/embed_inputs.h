@@ -43,6 +43,10 @@ EmbedInputs LoadEmbedInputs(const std::string& input_path,
                             const WorkspaceOptions& workspace, Device device,
                             bool eval);
 
+// One line on stdout, "COMMAND: keyed message; key SHA-256 ..." (register
+// it) or "COMMAND: unkeyed message: ..." (what its rate then holds for).
+void PrintKeyNotice(const std::string& command, const std::string& key);
+
 // `count` views spread evenly over `views`.
 std::vector<size_t> SpreadViews(const std::vector<size_t>& views, int count);
 

@@ -128,9 +128,10 @@ int RunConcatEmbed(int argc, char** argv) {
   options.show_progress = true;
   const ShTarget target = ParseShTarget(a.attributes);
 
-  EmbedInputs in = LoadEmbedInputs(a.input_path, a.decoder_path, a.message,
-                                   ResolveKey(a.key_option), a.workspace,
-                                   parser.device(), a.eval);
+  const std::string key = ResolveKey(a.key_option);
+  EmbedInputs in = LoadEmbedInputs(a.input_path, a.decoder_path, a.message, key,
+                                   a.workspace, parser.device(), a.eval);
+  PrintKeyNotice("concat_embed", key);
   const GaussianModel& raw = in.ply.model;
   ConcatEncoder encoder(target, raw.sh_degree, in.decoder->NumBits(), a.hidden,
                         static_cast<uint32_t>(a.seed));

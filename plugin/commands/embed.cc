@@ -416,17 +416,7 @@ int RunEmbed(int argc, char** argv) {
   const std::string key = ResolveKey(a.key_option);
   EmbedInputs in = LoadEmbedInputs(a.input_path, a.decoder_path, a.message, key,
                                    a.workspace, parser.device(), a.eval);
-  if (!key.empty()) {
-    std::printf(
-        "embed: keyed message; key SHA-256 %s (register it now: a claim "
-        "is evidence only if fixed before the suspect is read)\n",
-        KeyFingerprint(key).c_str());
-  } else {
-    std::printf(
-        "embed: unkeyed message: its false-positive rate holds only for a "
-        "claim fixed before the suspect is read, and text messages share bits "
-        "(--key makes it exact: docs/verification.md)\n");
-  }
+  PrintKeyNotice("embed", key);
   PlyData& ply = in.ply;
   const BitDecoder* decoder = in.decoder.get();
   const Bits& message = in.message;

@@ -12,6 +12,7 @@
 #include "synthetic_model.h"
 #include "tests/plugin/rendered_workspace.h"
 #include "watermark/hidden_model.h"
+#include "watermark/message.h"
 
 namespace watergs {
 namespace {
@@ -51,6 +52,25 @@ TEST(ConcatEmbedCli, KeepsTheLayoutAndFrozenAttributesAndRefusesBadInput) {
   EXPECT_EQ(out.model.log_scales, in.model.log_scales);
   EXPECT_EQ(out.model.quats, in.model.quats);
   EXPECT_EQ(out.model.opacity_logits, in.model.opacity_logits);
+
+  // --key: the bits written are the message XOR the key's stream (the line
+  // names them), and the run is keyed; without it, the message itself.
+  EXPECT_NE(run.output.find("16-bit message a5c3"), std::string::npos)
+      << run.output;
+  const std::string key = "concat test key";
+  const auto keyed =
+      RunCommand(base + " --output_path " + std::string(dir / "keyed.ply") +
+                 " --iterations 2 --crop_size 24 --hidden 8 "
+                 "--attributes f_dc --check_views 2 --key '" +
+                 key + "'");
+  ASSERT_EQ(keyed.exit_code, 0) << keyed.output;
+  const std::string keyed_hex =
+      BitsToHex(ApplyKey(ParseMessage("hex:a5c3", 16), key));
+  ASSERT_NE(keyed_hex, "a5c3");
+  EXPECT_NE(keyed.output.find("16-bit message " + keyed_hex), std::string::npos)
+      << keyed.output;
+  EXPECT_NE(keyed.output.find("keyed message"), std::string::npos)
+      << keyed.output;
 
   const std::string bad_out = dir / "bad.ply";
   ExpectOneLineError(
