@@ -269,6 +269,21 @@ void CheckViewImages(const Reconstruction& model,
   }
 }
 
+// `pinhole` cropped (centred, whole pixels) to a multiple of `k` in each
+// dimension, so that its views are exact k-fold reductions: an undistorted
+// camera 479 pixels wide, rendered at round(479 / 2) = 240, resampled the
+// photos at 0.501 and blurred them (docs/reconstruct.md).
+Camera CropToMultiple(Camera pinhole, int k) {
+  const uint64_t width = pinhole.width / k * k;
+  const uint64_t height = pinhole.height / k * k;
+  if (k <= 1 || width == 0 || height == 0) return pinhole;
+  pinhole.params[2] -= double((pinhole.width - width) / 2);
+  pinhole.params[3] -= double((pinhole.height - height) / 2);
+  pinhole.width = width;
+  pinhole.height = height;
+  return pinhole;
+}
+
 // The pinhole render camera of `image`: `pinhole` intrinsics scaled to
 // round(size / downscale), COLMAP's world-to-camera pose.
 RenderCamera MakeRenderCamera(const Image& image, const Camera& pinhole,
@@ -347,7 +362,10 @@ Workspace Workspace::Open(const WorkspaceOptions& options) {
                     workspace.model_path_);
   }
   for (const auto& [id, camera] : model.Cameras()) {
-    workspace.pinhole_cameras_[id] = UndistortCamera(camera);
+    const Camera pinhole = UndistortCamera(camera);
+    workspace.pinhole_cameras_[id] =
+        camera.HasDistortion() ? CropToMultiple(pinhole, opts.downscale)
+                               : pinhole;
   }
   for (const image_t id : workspace.views_) {
     const Image& image = model.GetImage(id);
