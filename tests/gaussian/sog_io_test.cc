@@ -22,6 +22,7 @@
 #include "gaussian/error.h"
 #include "gaussian/file_util.h"
 #include "gaussian/model_io.h"
+#include "gaussian/ply_io.h"
 #include "tests/common/random_model.h"
 #include "tests/common/refusal.h"
 
@@ -130,6 +131,61 @@ TEST(SogIo, RoundTripErrorsStayWithinTheFormatsSteps) {
   // dropping the bands would lose all of it.
   EXPECT_LT(sh_error, 0.5 * sh_energy);
   EXPECT_EQ(EncodeSog(model), bytes) << "the same model gave other bytes";
+}
+
+TEST(SogIo, ReadsTheFileSplatTransformWrote) {
+  // tests/data/sog: 64 Gaussians of SH degree 3 with random values
+  // (source.ply) and the .sog PlayCanvas splat-transform 2.7.1 wrote of them
+  // (`-g cpu -i 10`). Matched by position, every value within the format's
+  // steps; measured at most: position 4.1e-5, alpha 0.0039, log-scale
+  // 0.0063, SH DC 0.0065, SH rest 0.0015, quaternion |dot| >= 0.99995. A
+  // convention read wrong (an SH sign or order, a colour offset, an axis, the
+  // quaternion's component order) errs by 0.1 or more.
+  const std::string dir = std::string(WATERGS_SOURCE_DIR) + "/tests/data/sog/";
+  const GaussianModel source = ReadPly(dir + "source.ply").model;
+  const GaussianModel read =
+      ReadModelFile(dir + "splat_transform_2.7.1.sog").model;
+  ASSERT_EQ(read.size(), 64u);
+  ASSERT_EQ(read.sh_degree, 3);
+  std::vector<bool> used(64, false);
+  const auto sigmoid = [](double x) { return 1 / (1 + std::exp(-x)); };
+  for (size_t i = 0; i < read.size(); ++i) {
+    size_t j = 0;
+    double nearest = INFINITY;
+    for (size_t k = 0; k < source.size(); ++k) {
+      double d2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        const double d = read.means[3 * i + c] - source.means[3 * k + c];
+        d2 += d * d;
+      }
+      if (d2 < nearest) nearest = d2, j = k;
+    }
+    EXPECT_FALSE(used[j]) << "two Gaussians read at one place";
+    used[j] = true;
+    EXPECT_LT(std::sqrt(nearest), 1e-4) << i;
+    EXPECT_NEAR(sigmoid(read.opacity_logits[i]),
+                sigmoid(source.opacity_logits[j]), 1 / 255.0 + 1e-4)
+        << i;
+    double dot = 0, norm_read = 0, norm_source = 0;
+    for (int c = 0; c < 4; ++c) {
+      dot += read.quats[4 * i + c] * source.quats[4 * j + c];
+      norm_read += read.quats[4 * i + c] * read.quats[4 * i + c];
+      norm_source += source.quats[4 * j + c] * source.quats[4 * j + c];
+    }
+    EXPECT_GT(std::abs(dot) / std::sqrt(norm_read * norm_source), 0.9999) << i;
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(read.log_scales[3 * i + c], source.log_scales[3 * j + c],
+                  0.01)
+          << i;
+      EXPECT_NEAR(read.sh_dc[3 * i + c], source.sh_dc[3 * j + c], 0.01) << i;
+    }
+    const int stride = read.sh_rest_stride();
+    for (int c = 0; c < stride; ++c) {
+      EXPECT_NEAR(read.sh_rest[i * stride + c], source.sh_rest[j * stride + c],
+                  0.003)
+          << i << " coefficient " << c;
+    }
+  }
 }
 
 TEST(SogIo, UnbundledMetaReadsAsTheBundle) {

@@ -148,17 +148,61 @@ TEST(KeyCli, OnlyTheKeyedClaimReadsPresent) {
                  " --workspace_path " + wo.workspace_path + " --decoder " +
                  kDecoder + " --num_views 40 --json " + raw_json);
   ASSERT_EQ(raw_extract.exit_code, 0) << raw_extract.output;
-  const auto null = RunCommand(WatergsBin() + " null_calibration --decoder " +
-                               kDecoder + " --logits " + raw_json +
-                               " --keys 50 --single_keys 1 --aggregate 1,6"
-                               " --aggregates 30 --markdown " +
-                               (dir / "null.md"));
+  const auto null =
+      RunCommand(WatergsBin() + " null_calibration --decoder " + kDecoder +
+                 " --logits " + raw_json +
+                 " --keys 50 --single_keys 1 --aggregate 1,6"
+                 " --aggregates 30 --markdown " +
+                 (dir / "null.md") + " --json " + (dir / "null.json"));
   ASSERT_EQ(null.exit_code, 0) << null.output;
   EXPECT_NE(null.output.find("raw_views 40"), std::string::npos) << null.output;
   EXPECT_NE(null.output.find("| text:WGS-26, 50 keys | 6 | 0.01 | "),
             std::string::npos)
       << null.output;
   EXPECT_TRUE(std::ifstream(dir / "null.md").good());
+
+  // Its single-view rates on these real unmarked renders, recounted here
+  // from extract's logits: a view passes a claim at 1e-2 with at most 15 of
+  // 48 bits wrong; the keyed family is the message under keys
+  // "null-calibration-0" to "-49".
+  std::ifstream raw_in(raw_json);
+  const nlohmann::json views = nlohmann::json::parse(raw_in)["views"];
+  ASSERT_EQ(views.size(), 40u);
+  const Bits message = ParseMessage("text:WGS-26", 48);
+  int fixed_passes = 0, keyed_passes = 0;
+  for (const auto& view : views) {
+    const std::vector<float> logits = view["logits"];
+    Bits bits(48);
+    for (int i = 0; i < 48; ++i) bits[i] = logits[i] > 0;
+    fixed_passes += HammingDistance(bits, message) <= 15;
+    for (int k = 0; k < 50; ++k) {
+      const Bits keyed =
+          ApplyKey(message, "null-calibration-" + std::to_string(k));
+      keyed_passes += HammingDistance(bits, keyed) <= 15;
+    }
+  }
+  std::ifstream null_in(dir / "null.json");
+  const nlohmann::json table = nlohmann::json::parse(null_in);
+  int rows = 0;
+  for (const auto& row : table["rows"]) {
+    if (row["aggregate_size"] != 1 || row["nominal"] != 0.01) continue;
+    const std::string claim = row["claim"];
+    if (claim == "text:WGS-26, unkeyed") {
+      EXPECT_EQ(row["trials"], 40);
+      EXPECT_EQ(row["passes"], fixed_passes);
+      ++rows;
+    } else if (claim == "text:WGS-26, 50 keys") {
+      EXPECT_EQ(row["trials"], 40 * 50);
+      EXPECT_EQ(row["passes"], keyed_passes);
+      // About 0.66% of 2,000 (the binomial rate at 15 wrong): the pooled
+      // keyed rate holds by construction, so far from it means the keys
+      // were not applied.
+      EXPECT_GE(keyed_passes, 2);
+      EXPECT_LE(keyed_passes, 40);
+      ++rows;
+    }
+  }
+  EXPECT_EQ(rows, 2);
 }
 
 TEST(KeyCli, NullCalibrationRefusesBadLogitFilesInOneLine) {
