@@ -24,6 +24,20 @@
 namespace watergs {
 namespace {
 
+// What a stage's marker records: its command with the workspace's path as
+// "$WORKSPACE", so that a workspace moved or copied elsewhere (a backup, a
+// test fixture) resumes instead of reading as "other settings".
+std::string StageMarker(const std::string& command,
+                        const std::filesystem::path& ws) {
+  std::string text = command;
+  const std::string path = ws.string();
+  for (size_t at = text.find(path); !path.empty() && at != std::string::npos;
+       at = text.find(path, at + 10)) {
+    text.replace(at, path.size(), "$WORKSPACE");
+  }
+  return text + "\n";
+}
+
 namespace fs = std::filesystem;
 
 // Output of `command` (stdout and stderr) and its exit status.
@@ -289,7 +303,10 @@ void RunReconstruction(const ReconstructOptions& o) {
         (ws / ".reconstruct" / (stages[k].name + ".log")).string();
     if (!fs::exists(marker)) continue;
     const std::vector<uint8_t> bytes = ReadFileBytes(marker.string());
-    if (std::string(bytes.begin(), bytes.end()) != stages[k].command + "\n") {
+    const std::string recorded(bytes.begin(), bytes.end());
+    // Markers before the workspace-relative form held the command itself.
+    if (recorded != StageMarker(stages[k].command, ws) &&
+        recorded != stages[k].command + "\n") {
       FailAt(marker.string(), "was done with other settings: remove " +
                                   (ws / ".reconstruct").string() +
                                   " and the database to start over");
@@ -313,7 +330,7 @@ void RunReconstruction(const ReconstructOptions& o) {
       fs::create_directories(ws / "sparse");
     }
     RunStage(stage);
-    AtomicWriteFile(marker.string(), stage.command + "\n");
+    AtomicWriteFile(marker.string(), StageMarker(stage.command, ws));
   }
 
   const std::string model = KeepLargestModel((ws / "sparse").string());

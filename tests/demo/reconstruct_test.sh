@@ -20,7 +20,8 @@ one_line_error() {  # WHAT COMMAND...: non-zero exit, one line naming WHAT
 }
 
 # The reconstruction: the demo_reconstruction fixture's (WATERGS_DEMO_RECONSTRUCTION, shared with
-# pipeline_test; copied, since the resume below runs on it), else made here.
+# pipeline_test), else made here; always a copy, so the resume below also checks that a workspace
+# moved elsewhere resumes (its stage markers hold the workspace as $WORKSPACE).
 fixture="${WATERGS_DEMO_RECONSTRUCTION:-}"
 if [ -z "$fixture" ]; then
   fixture="$out/fixture"
