@@ -16,7 +16,8 @@
 # changes the scene (an SH sign, a colour offset, a codebook that loses a tail) fails here.
 # The embedding is the blind one (--reading blind), read blind: the converters' fidelity under
 # the strong embedding. (embed's default, the owner's reading at 37 dB, reads watergs' own SOG
-# written back to PLY by splat-transform at 12 of 48 wrong at this size: docs/formats.md.)
+# written back to PLY by splat-transform at 0 of 48 wrong at this size since the exact codebooks;
+# 12 of 48 before: docs/formats.md.)
 # The tools come from `scripts/install_deps.sh --tests` (npm group, into WATERGS_NPM_PREFIX); if
 # they are missing the test installs them the same way. Exit 77 (skip) only when the npm
 # registry cannot be reached.
