@@ -21,6 +21,11 @@ struct ColmapPlan {
   int num_threads = 2;
   // SIFT on the GPU (a CUDA-built colmap and a visible GPU).
   bool use_gpu = false;
+  // Matching in watergs (exact nearest neighbours, sift_matching.h), then
+  // COLMAP's geometric verification (matches_importer); else COLMAP's own
+  // matcher. On the CPU, unless a photo's name holds a space (COLMAP's match
+  // list cannot name it).
+  bool exact_matching = false;
   // One camera for all photos (they share one size).
   bool single_camera = true;
   // One line per choice: "matcher exhaustive: 48 photos, 1,128 pairs".
@@ -44,19 +49,25 @@ struct ReconstructOptions {
 // The photo files of `image_path` (.jpg/.jpeg/.png, any case, sorted).
 std::vector<std::string> ListPhotos(const std::string& image_path);
 
-// Most photos matched exhaustively (4,950 pairs, ~14 min at 2,048 features on
-// 2 cores). Every pair is what places photos right on repetitive texture:
-// sequential matching (with COLMAP's quadratic overlap) joined two groups of
-// the demo's 48 photos in a wrong relative pose at 0.29 px reprojection error.
+// Most photos matched exhaustively (4,950 pairs, ~2.5 min at 2,048 features
+// on 2 cores with the exact matcher). Every pair is what places photos right on
+// repetitive texture: sequential matching (with COLMAP's quadratic overlap)
+// joined two groups of the demo's 48 photos in a wrong relative pose at 0.29 px
+// reprojection error.
 inline constexpr int kMaxExhaustivePhotos = 100;
+
+// COLMAP's SequentialMatching.overlap (sift_matching.h: SequentialPairs).
+inline constexpr int kSequentialOverlap = 10;
 
 // Settings for `num_photos` photos on `num_threads` threads: matcher
 // exhaustive up to kMaxExhaustivePhotos, sequential beyond;
-// 2,048 features an image on the CPU (8,192 with GPU SIFT); options given
-// override the choice.
+// 2,048 features an image on the CPU (8,192 with GPU SIFT), matched exactly
+// by watergs on the CPU unless `names_with_spaces`; options given override
+// the choice.
 ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
                               bool single_camera,
-                              const ReconstructOptions& options);
+                              const ReconstructOptions& options,
+                              bool names_with_spaces = false);
 
 // Held-out views this far below the best one suggest misplaced photos.
 inline constexpr double kOutlierViewDb = 6;

@@ -52,12 +52,24 @@ awk -v w="$worst" 'BEGIN { exit !(w < 2) }' || fail "photos misplaced: $poses"
   --downscale 4 --num_threads 2 > "$out/train.log" 2>&1 || fail "train refused the workspace: $(tail -2 "$out/train.log")"
 [ -f "$out/train/point_cloud.ply" ] || fail "train wrote no model"
 
-# Resume: every stage kept, the same model.
+# Resume: every stage (features, matching, verification, mapping) kept, the same model.
 sum1=$(md5sum < "$ws/sparse/0/points3D.bin")
 "$bin" reconstruct --image_path "$photos" --workspace_path "$ws" \
   > "$out/run2.log" 2>&1 || fail "second run: $(tail -2 "$out/run2.log")"
-[ "$(grep -c "done before, kept" "$out/run2.log")" -eq 3 ] || fail "stages redone: $(cat "$out/run2.log")"
+[ "$(grep -c "done before, kept" "$out/run2.log")" -eq 4 ] || fail "stages redone: $(cat "$out/run2.log")"
 [ "$(md5sum < "$ws/sparse/0/points3D.bin")" = "$sum1" ] || fail "the model changed on resume"
+grep -q "matching on the CPU: exact" "$out/run1.log" || fail "not matched by watergs on the CPU"
+# A workspace matched by COLMAP's own matcher (before watergs matched): its marker covers the
+# matching and the verification, and the run resumes with every stage kept.
+cp -a "$ws" "$out/ws_colmap_matched"
+rm "$out/ws_colmap_matched/.reconstruct/verification.done"
+threads=$(sed -nE 's/.*--SiftMatching.num_threads ([0-9]+).*/\1/p' "$ws/.reconstruct/verification.done")
+echo "colmap exhaustive_matcher --database_path \$WORKSPACE/database.db --SiftMatching.use_gpu 0" \
+  "--SiftMatching.num_threads $threads --ExhaustiveMatching.block_size 10" \
+  > "$out/ws_colmap_matched/.reconstruct/matching.done"
+"$bin" reconstruct --image_path "$photos" --workspace_path "$out/ws_colmap_matched" \
+  > "$out/run3.log" 2>&1 || fail "COLMAP-matched workspace: $(tail -2 "$out/run3.log")"
+[ "$(grep -c "done before, kept" "$out/run3.log")" -eq 4 ] || fail "COLMAP-matched stages redone: $(cat "$out/run3.log")"
 # Other settings on a started workspace: refused, not mixed.
 one_line_error "other settings" "$bin" reconstruct --image_path "$photos" --workspace_path "$ws" \
   --max_features 512
