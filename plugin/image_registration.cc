@@ -135,6 +135,43 @@ ImageRegistrar::~ImageRegistrar() = default;
 
 size_t ImageRegistrar::IndexSize() const { return index_->points.size(); }
 
+namespace {
+
+// Registration::alternatives: RANSAC again on the matches no pose so far
+// explains, while a pose keeps enough of them.
+std::vector<RenderCamera> AlternativePoses(
+    const std::vector<cv::Point3d>& object,
+    const std::vector<cv::Point2d>& pixels, const std::vector<int>& inliers,
+    const cv::Matx33d& K, const RenderCamera& camera,
+    const RegistrationOptions& options) {
+  std::vector<bool> used(object.size(), false);
+  for (int i : inliers) used[size_t(i)] = true;
+  std::vector<RenderCamera> poses;
+  while (int(poses.size()) < options.max_alternatives) {
+    std::vector<cv::Point3d> rest_object;
+    std::vector<cv::Point2d> rest_pixels;
+    std::vector<size_t> rest_index;
+    for (size_t i = 0; i < object.size(); ++i) {
+      if (used[i]) continue;
+      rest_object.push_back(object[i]);
+      rest_pixels.push_back(pixels[i]);
+      rest_index.push_back(i);
+    }
+    if (int(rest_object.size()) < options.alternative_inliers) break;
+    cv::Mat rvec, tvec;
+    std::vector<int> in;
+    const bool ok = cv::solvePnPRansac(
+        rest_object, rest_pixels, K, cv::noArray(), rvec, tvec, false, 2000,
+        float(options.inlier_px), 0.999, in, cv::SOLVEPNP_SQPNP);
+    if (!ok || int(in.size()) < options.alternative_inliers) break;
+    for (int i : in) used[rest_index[size_t(i)]] = true;
+    poses.push_back(WithPose(camera, K, rvec, tvec));
+  }
+  return poses;
+}
+
+}  // namespace
+
 Registration ImageRegistrar::Register(const ImageRGB& image) const {
   Registration r;
   std::vector<cv::KeyPoint> keypoints;
@@ -208,6 +245,8 @@ Registration ImageRegistrar::Register(const ImageRGB& image) const {
             std::to_string(options_.min_inliers) + " needed)";
     return r;
   }
+  r.alternatives =
+      AlternativePoses(object, pixels, inliers, K, camera, options_);
   std::vector<cv::Point3d> in_object;
   std::vector<cv::Point2d> in_pixels;
   for (int i : inliers) {

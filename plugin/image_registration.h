@@ -28,6 +28,10 @@ struct RegistrationOptions {
   double inlier_px = 3.0;
   // Fewer inliers than this: not registered.
   int min_inliers = 15;
+  // Alternatives (Registration::alternatives): at most this many, each with
+  // at least alternative_inliers inliers.
+  int max_alternatives = 3;
+  int alternative_inliers = 6;
   // A photo's feature takes an SfM point's 3D position when within this
   // many pixels of the point's projection.
   double associate_px = 2.5;
@@ -45,6 +49,11 @@ struct Registration {
   // centred on the image, scaled for a resize) before they were refined: a
   // second start for a photometric refinement.
   RenderCamera guessed_camera;
+  // Other poses the matches support (at the guessed intrinsics), from
+  // RANSAC on the matches the poses before left out, most inliers first:
+  // on repetitive texture the most supported pose can be a period off, and
+  // a photometric comparison tells them apart.
+  std::vector<RenderCamera> alternatives;
   // Ratio-test matches, RANSAC inliers, inlier RMS reprojection (pixels).
   int matches = 0, inliers = 0;
   double rms_px = 0;

@@ -190,9 +190,11 @@ PhotometricResult RefinePhotometrically(const ImageRGB& image,
   // other, and a start's intrinsics may be the right ones), then everything
   // from the best.
   std::pair<RenderCamera, double> best{camera, INFINITY};
-  for (const RenderCamera& s : starts) {
-    auto aligned = Align(target, s, depth, 6, render, options, &result.renders);
-    if (aligned.second < best.second) best = aligned;
+  int best_start = 0;
+  for (size_t k = 0; k < starts.size(); ++k) {
+    auto aligned =
+        Align(target, starts[k], depth, 6, render, options, &result.renders);
+    if (aligned.second < best.second) best = aligned, best_start = int(k);
   }
   if (options.refine_intrinsics) {
     auto aligned = Align(target, best.first, depth, kParameters, render,
@@ -201,10 +203,14 @@ PhotometricResult RefinePhotometrically(const ImageRGB& image,
       best = aligned;
     }
   }
-  result.moved_px = CameraMotionPx(camera, best.first, depth);
+  // A wrong basin shows as a long move from the start the alignment left
+  // (another start may lie far from the first and still be right).
+  const double moved = CameraMotionPx(starts[best_start], best.first, depth);
   if (std::isfinite(best.second) && best.second < result.rms_before &&
-      result.moved_px <= options.max_move_px) {
+      moved <= options.max_move_px) {
     result.applied = true;
+    result.moved_px = moved;
+    result.start = best_start;
     result.camera = best.first;
     result.rms_after = best.second;
   } else {

@@ -26,9 +26,9 @@ struct PhotometricOptions {
   // Finite-difference step, in pixels of motion at the image.
   double step_px = 0.25;
   int max_iterations = 10;
-  // A move larger than this (pixels at a corner, at the scene's median
-  // depth) is a wrong basin: kept out. Feature registrations of the demo's
-  // JPEG screenshots needed up to 9 (a zoom moves corners most).
+  // A move larger than this from the start it left (pixels at a corner, at
+  // the scene's median depth) is a wrong basin: kept out. Feature registrations
+  // of the demo's JPEG screenshots needed up to 9 (a zoom moves corners most).
   double max_move_px = 20.0;
   // After the pose, also the focal length and principal point, kept only
   // when they lower the residual RMS by this fraction more: at the true
@@ -43,9 +43,11 @@ struct PhotometricResult {
   RenderCamera camera;   // the refined camera, or the input one
   // RMS of the blurred RGB difference before and after.
   double rms_before = 0, rms_after = 0;
-  // Largest motion of the image's corners and centre between the two
-  // cameras, pixels (at `depth`).
+  // Largest motion of the image's corners and centre between the camera
+  // kept and the start it was aligned from (pixels at `depth`).
   double moved_px = 0;
+  // That start's index in `starts`.
+  int start = 0;
   int renders = 0;
 };
 

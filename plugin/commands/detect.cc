@@ -149,8 +149,10 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
     Registration r = registrar.Register(images[k]);
     PhotometricResult refined;
     if (r.registered && refine) {
-      refined = RefinePhotometrically(images[k], {r.camera, r.guessed_camera},
-                                      r.depth, like_file);
+      // Every pose the matches support: the one the render fits best wins.
+      std::vector<RenderCamera> starts = {r.camera, r.guessed_camera};
+      starts.insert(starts.end(), r.alternatives.begin(), r.alternatives.end());
+      refined = RefinePhotometrically(images[k], starts, r.depth, like_file);
       r.camera = refined.camera;
     }
     out.refinements.push_back(refined);
@@ -352,10 +354,13 @@ int RunDetect(int argc, char** argv) {
         const int errors = HammingDistance(bits, expected);
         const double p = BinomialTailPValue(num_bits - errors, num_bits);
         const PhotometricResult& f = owner.refinements[k];
-        char moved[48] = "";
+        char moved[80] = "";
         if (f.applied) {
-          std::snprintf(moved, sizeof(moved), ", refined by %.2f px",
-                        f.moved_px);
+          // Starts 0-1: the registered pose; 2 on: another pose the matches
+          // supported (Registration::alternatives).
+          std::snprintf(
+              moved, sizeof(moved), ", refined by %.2f px%s", f.moved_px,
+              f.start >= 2 ? " from another pose the matches support" : "");
         }
         std::printf(
             "detect (owner's reading): %s: registered (%d inliers of %d "
@@ -430,11 +435,10 @@ int RunDetect(int argc, char** argv) {
         if (g.registered) {
           e["rms_px"] = g.rms_px;
           const PhotometricResult& f = owner.refinements[k];
-          e["refinement"] = {{"applied", f.applied},
-                             {"moved_px", f.moved_px},
-                             {"rms_before", f.rms_before},
-                             {"rms_after", f.rms_after},
-                             {"renders", f.renders}};
+          e["refinement"] = {
+              {"applied", f.applied},     {"moved_px", f.moved_px},
+              {"start", f.start},         {"rms_before", f.rms_before},
+              {"rms_after", f.rms_after}, {"renders", f.renders}};
           const RenderCamera& c = g.camera;
           e["camera"] = {
               {"fx", c.fx},

@@ -83,6 +83,26 @@ TEST(PhotometricRefinement, FindsTheCameraAScreenshotWasTakenFrom) {
   EXPECT_GT(r.renders, 10);
 }
 
+TEST(PhotometricRefinement, AnotherStartFarFromTheFirstWinsWhenTheRenderFits) {
+  Scene scene;
+  const ImageRGB shot = scene.Screenshot();
+  // The first start: a registration a period off on repetitive texture,
+  // far beyond the basin; a later one (another pose the matches support)
+  // near the truth.
+  const double far[9] = {40, -25, 10, 30, 20, -15, 0, 0, 0};
+  const double near[9] = {1.2, -0.8, 0.5, -1.0, 0.7, 0.8, 0, 0, 0};
+  const RenderCamera wrong = MoveCamera(scene.truth, kDepth, far);
+  const RenderCamera right = MoveCamera(scene.truth, kDepth, near);
+  ASSERT_GT(CameraMotionPx(wrong, scene.truth, kDepth),
+            2 * PhotometricOptions().max_move_px);
+  const PhotometricResult r =
+      RefinePhotometrically(shot, {wrong, right}, kDepth, scene.render);
+  EXPECT_TRUE(r.applied);
+  EXPECT_LT(CameraMotionPx(scene.truth, r.camera, kDepth), 0.15);
+  EXPECT_EQ(r.start, 1);
+  EXPECT_LT(r.moved_px, 5) << "moved_px: from the start it left";
+}
+
 TEST(PhotometricRefinement, MovesTheIntrinsicsOnlyWhenTheyExplainTheImage) {
   Scene scene;
   const ImageRGB shot = scene.Screenshot();
