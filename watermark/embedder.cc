@@ -18,6 +18,7 @@
 #include "watermark/image_attacks.h"
 #include "watermark/nn_layers.h"
 #include "watermark/tensor.h"
+#include "watermark/texture_masking.h"
 
 #ifdef WATERGS_WITH_CUDA
 #include "gaussian/cuda/cuda_rasterizer_device.h"
@@ -252,6 +253,10 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
     Fail("embed: the owner's reading takes no decoder jitter");
   }
   if (!(options_.mse_weight >= 0)) Fail("embed: mse_weight must be >= 0");
+  if (!(options_.masking >= 0)) Fail("embed: masking must be >= 0");
+  if (options_.masking > 0 && options_.mse_weight <= 0) {
+    Fail("embed: masking weights the MSE term: give mse_weight > 0");
+  }
   if (options_.free_view_neighbors < 0) {
     Fail("embed: free_view_neighbors must be >= 0");
   }
@@ -313,6 +318,8 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
       host_step_reason_ = "decoder jitter runs on the host";
     } else if (options_.jpeg_quality > 0 && options_.jpeg_fraction > 0) {
       host_step_reason_ = "the JPEG layer runs on the host";
+    } else if (options_.masking > 0) {
+      host_step_reason_ = "texture masking runs on the host";
     }
   }
   if (cuda_rasterizer && cuda_decoder && host_step_reason_.empty()) {
@@ -371,6 +378,7 @@ std::string Embedder::RunSignature() const {
     j["feature_lr"] = options_.adam.feature_lr;
   }
   if (options_.mse_weight > 0) j["mse_weight"] = options_.mse_weight;
+  if (options_.masking > 0) j["masking"] = options_.masking;
   if (options_.jpeg_quality > 0 && options_.jpeg_fraction > 0) {
     j["jpeg_layer"] = {options_.jpeg_quality, options_.jpeg_fraction};
   }
@@ -428,11 +436,15 @@ LossTerms Embedder::ImageLoss(const ImageRGB& rendered, const ImageRGB& truth,
   grad->data.resize(n);
   double sum_sq = 0, sum_abs = 0;
   const float scale = float(2 * options_.mse_weight / double(n));
+  const std::vector<float> weights =
+      options_.masking > 0 ? TextureMaskingWeights(truth, options_.masking)
+                           : std::vector<float>();
   for (size_t i = 0; i < n; ++i) {
     const float d = rendered.data[i] - truth.data[i];
-    sum_sq += double(d) * d;
+    const float w = weights.empty() ? 1.f : weights[i / 3];
+    sum_sq += double(w) * d * d;
     sum_abs += std::abs(d);
-    grad->data[i] = scale * d;
+    grad->data[i] = scale * w * d;
   }
   terms.l1 = sum_abs / double(n);
   terms.total = options_.mse_weight * sum_sq / double(n);

@@ -88,6 +88,12 @@ struct EmbedOptions {
   // > 0: the image term is mse_weight * mean squared error (PSNR's own
   // measure) instead of (1 - beta) L1 + beta D-SSIM.
   double mse_weight = 0;
+  // > 0 (with mse_weight): texture masking of that term. Each pixel's
+  // squared error is weighted by 1 / (1 + sigma / masking), sigma the local
+  // standard deviation of the target's luminance (texture_masking.h):
+  // changes cost less where the image is textured, as a JND model puts them
+  // (HiDDeN+JND, Watson).
+  double masking = 0;
   // BER over the check views is evaluated every check_every iterations;
   // fine-tuning stops after `patience` consecutive checks at BER 0 (0 = never
   // stop early).

@@ -66,6 +66,7 @@ struct EmbedArgs {
   // owner (their difference from the raw model's at the same viewpoint).
   std::string reading = "owner";
   double mse_weight = 50;
+  double masking = 0;
   // Multiplies every optimiser rate: Adam moves each parameter by about its
   // rate per step whatever the loss weights, so the rates, not gamma, set
   // how far a model travels from the input.
@@ -323,6 +324,11 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("mse_weight", &a.mse_weight,
              "> 0: image loss = this x MSE (PSNR's measure) instead of L1 + "
              "D-SSIM");
+  parser.Add("masking", &a.masking,
+             "> 0 (with --mse_weight): texture masking, each pixel's squared "
+             "error weighted by 1 / (1 + sigma / this), sigma the local "
+             "luminance deviation; changes cost less where the image is "
+             "textured (measured: docs/history.md)");
   parser.Add("lr_scale", &a.lr_scale,
              "Multiply every optimiser rate by this (Adam moves each parameter "
              "by about its rate a step, whatever the loss weights)");
@@ -394,6 +400,7 @@ int RunEmbed(int argc, char** argv) {
   }
   options.owner_reading = a.reading == "owner";
   options.mse_weight = a.mse_weight;
+  options.masking = a.masking;
   options.patience = a.patience;
   options.stop_margin = a.stop_margin;
   options.check_every = a.check_every;
