@@ -46,4 +46,28 @@ line = (f"wm: {w[2]} of {w[4]} present alone as the owner ({w[1]} registered; bi
         f"{' | keyed' if key else ''}")
 print(line)
 open(f"{out}/results.txt", "a").write(line + "\n")
+# Registration against the truth: render writes each viewpoint's camera (cameras.json); the camera
+# centre each registration found, off by a fraction of the spread of the 20 true centres.
+import math, os
+truth = {}
+for sub in ("whole", "crop", "small"):
+    path = f"{out}/shots_wm/{sub}/cameras.json"
+    if os.path.exists(path):
+        for c in json.load(open(path)):
+            truth[f"{sub}/{c['img_name']}"] = c["position"]
+if truth:
+    centres = list(truth.values())
+    mean = [sum(c[a] for c in centres) / len(centres) for a in range(3)]
+    spread = max(math.dist(c, mean) for c in centres) or 1
+    o = json.load(open(f"{out}/shots_wm/detect.json"))["owner"]
+    errs = {v["name"]: v["bit_errors"] for v in o.get("views", [])}
+    items = []
+    for r in o["registrations"]:
+        key = "/".join(r["name"].split("/")[-2:]).rsplit(".", 1)[0]
+        if r.get("registered") and key in truth:
+            off = math.dist(r["camera"]["center"], truth[key]) / spread
+            items.append(f"{key} {off:.3f} ({errs.get(r['name'], '?')} wrong)")
+    line = "registration centre error / spread: " + ", ".join(items)
+    print(line)
+    open(f"{out}/results.txt", "a").write(line + "\n")
 PY

@@ -52,6 +52,17 @@ void RenderFreeViews(const GaussianModel& model, const WorkspaceViews& views,
     bar.Update(static_cast<int64_t>(k + 1));
   }
   bar.Finish();
+  // The viewpoints as Inria's cameras.json (each render's camera before any
+  // --image_attack): the ground truth a registration is checked against.
+  InMemoryViews written;
+  std::vector<size_t> all;
+  for (size_t k = 0; k < cameras.size(); ++k) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "free_%03zu", k);
+    written.Add(name, cameras[k], ImageRGB());
+    all.push_back(k);
+  }
+  WriteCamerasJson(output_path + "/cameras.json", written, all);
   std::printf("render: %zu free viewpoints (seed %llu) -> %s\n", cameras.size(),
               static_cast<unsigned long long>(seed), output_path.c_str());
 }

@@ -12,8 +12,11 @@
 
 #include "gaussian/file_util.h"
 #include "gaussian/ply_io.h"
+#include "plugin/training_views.h"
+#include "plugin/workspace.h"
 #include "synthetic_model.h"
 #include "tests/plugin/rendered_workspace.h"
+#include "watermark/extractor.h"
 
 namespace watergs {
 namespace {
@@ -175,6 +178,29 @@ TEST(InterfaceCli, ImagesOptionalWhereNoGroundTruthIsNeeded) {
   ASSERT_EQ(render.exit_code, 0) << render.output;
   EXPECT_NE(render.output.find("no PSNR"), std::string::npos) << render.output;
   EXPECT_TRUE(fs::exists(dir / "renders/frame_1000.png")) << render.output;
+  // Free viewpoints: their cameras beside the images (Inria's cameras.json),
+  // the ones extract --num_views samples for that seed.
+  const auto free = RunCommand(WatergsBin() + " render --input_path " + s.ply +
+                               " --workspace_path " + s.ws +
+                               " --num_views 3 --seed 4 --output_path " +
+                               (dir / "free"));
+  ASSERT_EQ(free.exit_code, 0) << free.output;
+  const auto cameras = ReadJson(dir / "free/cameras.json");
+  WorkspaceOptions workspace_options;
+  workspace_options.workspace_path = s.ws;
+  workspace_options.images_optional = true;
+  const Workspace workspace = Workspace::Open(workspace_options);
+  const std::vector<RenderCamera> expected =
+      SampleFreeViewpoints(WorkspaceViews(workspace), 3, 4);
+  ASSERT_EQ(cameras.size(), 3u);
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_EQ(cameras[k]["img_name"], "free_00" + std::to_string(k));
+    EXPECT_NEAR(cameras[k]["fx"].get<double>(), expected[k].fx, 1e-9);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(cameras[k]["position"][a].get<double>(),
+                  expected[k].Center()[a], 1e-9);
+    }
+  }
 
   ExpectOneLineError(RunCommand(WatergsBin() + " train --workspace_path " +
                                 s.ws + " --output_path " + (dir / "t")),
