@@ -26,11 +26,21 @@ struct ColmapPlan {
   // matcher. On the CPU, unless a photo's name holds a space (COLMAP's match
   // list cannot name it).
   bool exact_matching = false;
-  // One camera for all photos (they share one size).
+  // One camera for all photos (in capture order, one size); else, for
+  // photos in no order, a camera per photo; else COLMAP's choice (3.8: a
+  // camera per photo; later versions group by size and EXIF camera).
   bool single_camera = true;
+  bool camera_per_photo = false;
   // One line per choice: "matcher exhaustive: 48 photos, 1,128 pairs".
   std::vector<std::string> reasons;
 };
+
+// Most photos named in capture order matched exhaustively (by default) (4,950
+// pairs, ~2.5 min at 2,048 features on 2 cores with the exact matcher). Every
+// pair is what places photos right on repetitive texture: sequential matching
+// (with COLMAP's quadratic overlap) joined two groups of the demo's 48 photos
+// in a wrong relative pose at 0.29 px reprojection error.
+inline constexpr int kMaxExhaustivePhotos = 100;
 
 struct ReconstructOptions {
   std::string image_path, workspace_path;
@@ -40,6 +50,10 @@ struct ReconstructOptions {
   int max_features = 0;
   // "auto", "exhaustive" or "sequential".
   std::string matcher = "auto";
+  // "auto": photos named in capture order (one numbered sequence) are
+  // matched exhaustively up to this many, sequentially beyond; photos in no
+  // order always exhaustively.
+  int sequential_above = kMaxExhaustivePhotos;
   // 0: all cores.
   int num_threads = 0;
   // Fewest registered photos accepted, as a fraction of the photos.
@@ -49,25 +63,26 @@ struct ReconstructOptions {
 // The photo files of `image_path` (.jpg/.jpeg/.png, any case, sorted).
 std::vector<std::string> ListPhotos(const std::string& image_path);
 
-// Most photos matched exhaustively (4,950 pairs, ~2.5 min at 2,048 features
-// on 2 cores with the exact matcher). Every pair is what places photos right on
-// repetitive texture: sequential matching (with COLMAP's quadratic overlap)
-// joined two groups of the demo's 48 photos in a wrong relative pose at 0.29 px
-// reprojection error.
-inline constexpr int kMaxExhaustivePhotos = 100;
+// Whether the photos' names are one numbered sequence (one prefix without
+// digits, then a number or a timestamp, each once: IMG_0001.JPG,
+// frame_00042.png, DJI_20200223_163016_842.jpg), as a camera names a walk or
+// a video; a web collection or a mix of captures is not.
+bool NamedInCaptureOrder(const std::vector<std::string>& photos);
 
 // COLMAP's SequentialMatching.overlap (sift_matching.h: SequentialPairs).
 inline constexpr int kSequentialOverlap = 10;
 
-// Settings for `num_photos` photos on `num_threads` threads: matcher
-// exhaustive up to kMaxExhaustivePhotos, sequential beyond;
-// 2,048 features an image on the CPU (8,192 with GPU SIFT), matched exactly
-// by watergs on the CPU unless `names_with_spaces`; options given override
-// the choice.
+// Settings for `num_photos` photos on `num_threads` threads: photos in
+// capture order (`in_capture_order`) are matched exhaustively up to
+// options.sequential_above, sequentially beyond, and share one camera when
+// `one_size`; photos in no order are matched exhaustively (with the time it
+// should take) and get a camera each. 2,048 features an image on the CPU
+// (8,192 with GPU SIFT), matched exactly by watergs on the CPU unless
+// `names_with_spaces`; options given override the choice.
 ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
-                              bool single_camera,
-                              const ReconstructOptions& options,
-                              bool names_with_spaces = false);
+                              bool one_size, const ReconstructOptions& options,
+                              bool names_with_spaces = false,
+                              bool in_capture_order = true);
 
 // Held-out views this far below the best one suggest misplaced photos.
 inline constexpr double kOutlierViewDb = 6;

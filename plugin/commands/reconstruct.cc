@@ -29,8 +29,12 @@ int RunReconstruct(int argc, char** argv) {
              "SIFT features an image (0: 2,048 on the CPU, 8,192 with GPU "
              "SIFT)");
   parser.Add("matcher", &o.matcher,
-             "auto (exhaustive up to " + std::to_string(kMaxExhaustivePhotos) +
-                 " photos, else sequential), exhaustive or sequential");
+             "auto (photos named in capture order: exhaustive up to "
+             "--sequential_above photos, sequential beyond; photos in no "
+             "order: exhaustive), exhaustive or sequential");
+  parser.Add("sequential_above", &o.sequential_above,
+             "Photos named in capture order are matched sequentially above "
+             "this many");
   parser.Add("num_threads", &o.num_threads, "Threads (0 = all cores)");
   parser.Add("min_registered", &o.min_registered_fraction,
              "Fewest photos the model must register, as a fraction");
@@ -38,6 +42,9 @@ int RunReconstruct(int argc, char** argv) {
   if (o.matcher != "auto" && o.matcher != "exhaustive" &&
       o.matcher != "sequential") {
     Fail("reconstruct: --matcher must be auto, exhaustive or sequential");
+  }
+  if (o.sequential_above < 2) {
+    Fail("reconstruct: --sequential_above must be >= 2");
   }
   if (o.max_features < 0 || o.num_threads < 0) {
     Fail("reconstruct: --max_features and --num_threads must be >= 0");

@@ -41,6 +41,51 @@ TEST(PlanReconstruction, OptionsGivenOverrideTheChoice) {
   EXPECT_NE(plan.reasons[1].find("(--max_features)"), std::string::npos);
 }
 
+TEST(NamedInCaptureOrder, ANumberedSequenceIsAnOrderAWebCollectionIsNot) {
+  EXPECT_TRUE(NamedInCaptureOrder(
+      {"a/view_000.jpg", "a/view_001.jpg", "a/view_010.jpg"}));
+  EXPECT_TRUE(NamedInCaptureOrder({"IMG_4026.JPG", "IMG_4027.JPG"}));
+  EXPECT_TRUE(NamedInCaptureOrder({"0001.png", "0002.png"}));
+  // Timestamps (LLFF's room, phones).
+  EXPECT_TRUE(NamedInCaptureOrder(
+      {"DJI_20200223_163016_842.jpg", "DJI_20200223_163017_120.jpg"}));
+  EXPECT_TRUE(NamedInCaptureOrder(
+      {"PXL_20231105_143022123.jpg", "PXL_20231105_143107554.jpg"}));
+  // Another prefix (two captures), a name without a number, a number twice.
+  EXPECT_FALSE(NamedInCaptureOrder({"IMG_0001.JPG", "DSC_0002.JPG"}));
+  EXPECT_FALSE(NamedInCaptureOrder({"IMG_0001.JPG", "IMG_cover.JPG"}));
+  EXPECT_FALSE(NamedInCaptureOrder({"IMG_0001.JPG", "IMG_1.JPG"}));
+  EXPECT_FALSE(NamedInCaptureOrder({"a8f3c2.jpg", "29b1e0.jpg", "77d0aa.jpg"}));
+}
+
+TEST(PlanReconstruction, PhotosInNoOrderAreMatchedEveryPairWithACameraEach) {
+  ReconstructOptions automatic;
+  automatic.sequential_above = 20;
+  const ColmapPlan ordered =
+      PlanReconstruction(48, 2, false, true, automatic, false, true);
+  EXPECT_EQ(ordered.matcher, "sequential");
+  EXPECT_TRUE(ordered.single_camera);
+  EXPECT_FALSE(ordered.camera_per_photo);
+  const ColmapPlan unordered =
+      PlanReconstruction(48, 2, false, true, automatic, false, false);
+  EXPECT_EQ(unordered.matcher, "exhaustive");
+  EXPECT_FALSE(unordered.single_camera);
+  EXPECT_TRUE(unordered.camera_per_photo);
+  EXPECT_NE(unordered.reasons[0].find("no capture order"), std::string::npos)
+      << unordered.reasons[0];
+  // 135 photos: 9,045 pairs at 0.07 CPU-seconds each on 2 threads.
+  const ColmapPlan web = PlanReconstruction(135, 2, false, true,
+                                            ReconstructOptions(), false, false);
+  EXPECT_NE(web.reasons[0].find("9045 pairs"), std::string::npos);
+  EXPECT_NE(web.reasons[0].find("~5 min on 2 threads"), std::string::npos)
+      << web.reasons[0];
+  // Photos of several sizes in order: COLMAP's grouping by size and EXIF.
+  const ColmapPlan sizes =
+      PlanReconstruction(48, 2, false, false, ReconstructOptions());
+  EXPECT_FALSE(sizes.single_camera);
+  EXPECT_FALSE(sizes.camera_per_photo);
+}
+
 }  // namespace
 }  // namespace watergs
 
