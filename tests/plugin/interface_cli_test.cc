@@ -180,10 +180,9 @@ TEST(InterfaceCli, ImagesOptionalWhereNoGroundTruthIsNeeded) {
   EXPECT_TRUE(fs::exists(dir / "renders/frame_1000.png")) << render.output;
   // Free viewpoints: their cameras beside the images (Inria's cameras.json),
   // the ones extract --num_views samples for that seed.
-  const auto free = RunCommand(WatergsBin() + " render --input_path " + s.ply +
-                               " --workspace_path " + s.ws +
-                               " --num_views 3 --seed 4 --output_path " +
-                               (dir / "free"));
+  const auto free = RunCommand(
+      WatergsBin() + " render --input_path " + s.ply + " --workspace_path " +
+      s.ws + " --num_views 3 --seed 4 --output_path " + (dir / "free"));
   ASSERT_EQ(free.exit_code, 0) << free.output;
   const auto cameras = ReadJson(dir / "free/cameras.json");
   WorkspaceOptions workspace_options;
