@@ -7,7 +7,8 @@
 # Appends one line to OUT/results.txt: images read "present" alone, blind and as the owner.
 #   datasets_scripts/detect_probe.sh OUT RAW WM [KEY]
 # Environment: WATERGS_BIN, SCENE (the demo scene), DECODER, DOWNSCALE (2), WIDTH (240, the
-# camera width at DOWNSCALE), MESSAGE (text:WGS-26).
+# camera width at DOWNSCALE), MESSAGE (text:WGS-26), DETECT_ARGS (more detect options, e.g.
+# "--index_renders 0").
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 out=${1:?usage: detect_probe.sh OUT RAW WM [KEY]}; raw=${2:?RAW}; wm=${3:?WM}; key=${4:-}
@@ -18,6 +19,7 @@ ds="${DOWNSCALE:-2}"; msg="${MESSAGE:-text:WGS-26}"
 # The renders' width at that downscale: every file is decoded back at that scale (detect --decode_width).
 width="${WIDTH:-240}"
 keyed=(); [ -z "$key" ] || keyed=(--key "$key")
+read -r -a detect_args <<< "${DETECT_ARGS:-}"
 for model in wm raw; do
   ply=$wm; [ "$model" = raw ] && ply=$raw
   dir="$out/shots_$model"; mkdir -p "$dir"
@@ -27,7 +29,7 @@ for model in wm raw; do
   "$bin" render "${common[@]}" --output_path "$dir/small" --num_views 5 --seed 7 --image_attack resize:0.75 > /dev/null 2>&1
   "$bin" detect --image_path "$dir/whole,$dir/crop,$dir/small" --decoder "$decoder" --message "$msg" \
     "${keyed[@]}" --decode_width "$width" --raw_path "$raw" --workspace_path "$scene" --downscale "$ds" \
-    --json "$dir/detect.json" > "$dir/detect.txt"
+    --json "$dir/detect.json" "${detect_args[@]}" > "$dir/detect.txt"
 done
 /usr/bin/python3 - "$out" "$key" <<'PY'
 import json, sys

@@ -69,6 +69,76 @@ RenderCamera WithPose(RenderCamera camera, const cv::Matx33d& K,
   return camera;
 }
 
+// Median camera depth of `points` (non-empty) seen from `camera`.
+double MedianDepth(const RenderCamera& camera,
+                   const std::vector<cv::Point3d>& points) {
+  std::vector<double> depths;
+  for (const cv::Point3d& X : points) {
+    depths.push_back(
+        (camera.R * Eigen::Vector3d(X.x, X.y, X.z) + camera.t).z());
+  }
+  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2,
+                   depths.end());
+  return depths[depths.size() / 2];
+}
+
+// The world point under a render's pixel position `at` (RenderCamera's
+// convention, a pixel's centre at col + 0.5) through its depth map, read
+// bilinearly (an oblique wall's depth changes across a pixel); false off the
+// map, on the background or at a depth edge (the 4 x 4 pixels around differ
+// by more than 2%: a blend of two surfaces, at neither).
+bool LiftToWorld(const RenderCamera& camera, const std::vector<float>& depth,
+                 const cv::Point2d& at, cv::Point3d* world) {
+  const double x = at.x - 0.5, y = at.y - 0.5;  // in pixel-index units
+  const int u = int(std::floor(x)), v = int(std::floor(y));
+  if (u < 1 || v < 1 || u + 2 >= camera.width || v + 2 >= camera.height) {
+    return false;
+  }
+  auto at_pixel = [&](int uu, int vv) {
+    return depth[size_t(vv) * camera.width + uu];
+  };
+  float lo = at_pixel(u, v), hi = lo;
+  for (int dv = -1; dv <= 2; ++dv) {
+    for (int du = -1; du <= 2; ++du) {
+      const float d = at_pixel(u + du, v + dv);
+      if (!std::isfinite(d)) return false;
+      lo = std::min(lo, d);
+      hi = std::max(hi, d);
+    }
+  }
+  if (!(lo > 0) || hi - lo > 0.02 * lo) return false;
+  const double fu = x - u, fv = y - v;
+  const double d =
+      (1 - fv) * ((1 - fu) * at_pixel(u, v) + fu * at_pixel(u + 1, v)) +
+      fv * ((1 - fu) * at_pixel(u, v + 1) + fu * at_pixel(u + 1, v + 1));
+  const Eigen::Vector3d in_camera((at.x - camera.cx) / camera.fx * d,
+                                  (at.y - camera.cy) / camera.fy * d, d);
+  const Eigen::Vector3d X = camera.R.transpose() * (in_camera - camera.t);
+  *world = {X.x(), X.y(), X.z()};
+  return true;
+}
+
+// SIFT features of `image`, positions in its pixels. An image narrower than
+// `search_width` is searched upsampled to it (its features would be too few
+// and too coarse), then the positions scaled back.
+void Features(cv::SIFT& sift, const ImageRGB& image, int search_width,
+              std::vector<cv::Point2d>* positions, cv::Mat* descriptors) {
+  cv::Mat grey = Grey(image);
+  double up = std::max(1.0, double(search_width) / image.width);
+  if (up > 1.05) {
+    cv::resize(grey, grey, cv::Size(), up, up, cv::INTER_CUBIC);
+    up = double(grey.cols) / image.width;  // the size was rounded
+  } else {
+    up = 1;
+  }
+  std::vector<cv::KeyPoint> keypoints;
+  sift.detectAndCompute(grey, cv::noArray(), keypoints, *descriptors);
+  positions->clear();
+  for (const cv::KeyPoint& k : keypoints) {
+    positions->push_back(PixelPosition(k, up));
+  }
+}
+
 }  // namespace
 
 struct ImageRegistrar::Index {
@@ -78,6 +148,50 @@ struct ImageRegistrar::Index {
   // have few strong corners.
   cv::Ptr<cv::SIFT> sift = cv::SIFT::create(0, 3, 0.02);
   cv::FlannBasedMatcher matcher;
+  // Index points closer than this (world units) are one point to the ratio
+  // test: a point seen in several photos or renders has a feature in each.
+  double distinct = 0;
+
+  // (Re)builds the matcher and `distinct` (1% of the points' RMS spread).
+  void Train() {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const cv::Point3d& X : points) mean += Eigen::Vector3d(X.x, X.y, X.z);
+    mean /= double(points.size());
+    double spread = 0;
+    for (const cv::Point3d& X : points) {
+      spread += (Eigen::Vector3d(X.x, X.y, X.z) - mean).squaredNorm();
+    }
+    distinct = 0.01 * std::sqrt(spread / double(points.size()));
+    matcher.clear();
+    matcher.add(std::vector<cv::Mat>{descriptors});
+    matcher.train();
+  }
+
+  // Matches of query features (rows of `query`, at `positions`) to index
+  // points passing Lowe's ratio test, the second neighbour being the nearest
+  // one on another point (of the 8 nearest; all on one point pass).
+  void Match(const cv::Mat& query, const std::vector<cv::Point2d>& positions,
+             double ratio, std::vector<cv::Point3d>* object,
+             std::vector<cv::Point2d>* pixels) {
+    if (query.empty() || points.empty()) return;
+    std::vector<std::vector<cv::DMatch>> knn;
+    matcher.knnMatch(query, knn, 8);
+    for (const auto& m : knn) {
+      if (m.empty()) continue;
+      const cv::Point3d& best = points[size_t(m[0].trainIdx)];
+      bool unique = true;
+      for (size_t j = 1; j < m.size(); ++j) {
+        if (cv::norm(points[size_t(m[j].trainIdx)] - best) <= distinct) {
+          continue;
+        }
+        unique = m[0].distance < ratio * m[j].distance;
+        break;
+      }
+      if (!unique) continue;
+      object->push_back(best);
+      pixels->push_back(positions[size_t(m[0].queryIdx)]);
+    }
+  }
 };
 
 ImageRegistrar::ImageRegistrar(const Workspace& workspace,
@@ -127,9 +241,33 @@ ImageRegistrar::ImageRegistrar(const Workspace& workspace,
     Fail("registration: no photo of " + workspace.options().workspace_path +
          " has a SIFT feature on an SfM point");
   }
-  index_->matcher.add(std::vector<cv::Mat>{index_->descriptors});
-  index_->matcher.train();
+  index_->Train();
 }
+
+void ImageRegistrar::AddRenders(const std::vector<RenderCamera>& cameras,
+                                const RenderFunction& render,
+                                const DepthFunction& depth) {
+  for (const RenderCamera& camera : cameras) {
+    std::vector<cv::Point2d> positions;
+    cv::Mat descriptors;
+    Features(*index_->sift, render(camera), reference_.width, &positions,
+             &descriptors);
+    const std::vector<float> depths = depth(camera);
+    for (size_t k = 0; k < positions.size(); ++k) {
+      cv::Point3d X;
+      if (!LiftToWorld(camera, depths, positions[k], &X)) continue;
+      index_->descriptors.push_back(descriptors.row(int(k)));
+      index_->points.push_back(X);
+    }
+  }
+  if (!index_->points.empty()) index_->Train();
+}
+
+ImageRegistrar::ImageRegistrar(const RenderCamera& reference,
+                               const RegistrationOptions& options)
+    : index_(std::make_unique<Index>()),
+      options_(options),
+      reference_(reference) {}
 
 ImageRegistrar::~ImageRegistrar() = default;
 
@@ -174,35 +312,15 @@ std::vector<RenderCamera> AlternativePoses(
 
 Registration ImageRegistrar::Register(const ImageRGB& image) const {
   Registration r;
-  std::vector<cv::KeyPoint> keypoints;
+  std::vector<cv::Point2d> positions;
   cv::Mat descriptors;
-  // A smaller copy is searched at the photos' scale (its features would be
-  // too few and too coarse), then the positions scaled back.
-  cv::Mat grey = Grey(image);
-  double up = std::max(1.0, double(reference_.width) / image.width);
-  if (up > 1.05) {
-    cv::resize(grey, grey, cv::Size(), up, up, cv::INTER_CUBIC);
-    up = double(grey.cols) / image.width;  // the size was rounded
-  } else {
-    up = 1;
-  }
-  index_->sift->detectAndCompute(grey, cv::noArray(), keypoints, descriptors);
+  Features(*index_->sift, image, reference_.width, &positions, &descriptors);
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> pixels;
-  if (!keypoints.empty()) {
-    std::vector<std::vector<cv::DMatch>> knn;
-    index_->matcher.knnMatch(descriptors, knn, 2);
-    for (const auto& m : knn) {
-      if (m.size() < 2 || m[0].distance >= options_.ratio * m[1].distance) {
-        continue;
-      }
-      object.push_back(index_->points[size_t(m[0].trainIdx)]);
-      pixels.push_back(PixelPosition(keypoints[size_t(m[0].queryIdx)], up));
-    }
-  }
+  index_->Match(descriptors, positions, options_.ratio, &object, &pixels);
   r.matches = int(object.size());
   if (r.matches < options_.min_inliers) {
-    r.why = std::to_string(keypoints.size()) + " features, " +
+    r.why = std::to_string(positions.size()) + " features, " +
             std::to_string(r.matches) +
             " matched to the workspace's SfM points (" +
             std::to_string(options_.min_inliers) + " needed)";
@@ -288,14 +406,7 @@ Registration ImageRegistrar::Register(const ImageRGB& image) const {
     }
   }
   camera = WithPose(camera, K, rvec, tvec);
-  std::vector<double> depths;
-  for (const cv::Point3d& X : in_object) {
-    depths.push_back(
-        (camera.R * Eigen::Vector3d(X.x, X.y, X.z) + camera.t).z());
-  }
-  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2,
-                   depths.end());
-  r.depth = depths[depths.size() / 2];
+  r.depth = MedianDepth(camera, in_object);
   r.camera = camera;
   r.registered = true;
   return r;

@@ -10,6 +10,7 @@
 // the focal length). OpenCV does the features, matching and geometry.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -71,7 +72,20 @@ class ImageRegistrar {
   // feature on an SfM point.
   ImageRegistrar(const Workspace& workspace, const TrainingViews& views,
                  const RegistrationOptions& options = {});
+  // An empty index (AddRenders fills it); queries start from `reference`'s
+  // intrinsics.
+  explicit ImageRegistrar(const RenderCamera& reference,
+                          const RegistrationOptions& options = {});
   ~ImageRegistrar();
+
+  // Adds to the index the features of renders of the raw model at `cameras`
+  // (viewpoints no photo was taken from), each lifted to 3D through the
+  // render's depth (RenderDepth): an image taken far from every photo finds
+  // a render near it.
+  using RenderFunction = std::function<ImageRGB(const RenderCamera&)>;
+  using DepthFunction = std::function<std::vector<float>(const RenderCamera&)>;
+  void AddRenders(const std::vector<RenderCamera>& cameras,
+                  const RenderFunction& render, const DepthFunction& depth);
 
   Registration Register(const ImageRGB& image) const;
   // SfM-anchored features in the index.

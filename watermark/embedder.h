@@ -26,6 +26,7 @@
 #include "watermark/decoder.h"
 #include "watermark/device_embedding_step.h"
 #include "watermark/message.h"
+#include "watermark/message_loss.h"
 #include "watermark/view_jitter.h"
 
 namespace watergs {
@@ -322,52 +323,5 @@ class Embedder {
 // random position in a width x height frame.
 PixelRect RandomCrop(int crop_size, int width, int height,
                      std::mt19937_64* rng);
-
-// Copies rect of `image` into `out` (resized).
-void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out);
-
-// The message term on decoded logits: returns BCE(targets, logits) (mean
-// over the bits) and sets dlogits = gamma * dBCE/dlogits; bit_errors (if not
-// null) gets the errors of the decoded bits. margin > 0 moves each logit by
-// margin towards the wrong side before the BCE (the bit errors are the
-// logits' own). `reference` (the unwatermarked model's logits at the same
-// view) is subtracted first: the owner's reading, bits and errors included.
-// Error if the lengths differ.
-double MessageBce(const std::vector<float>& logits,
-                  const std::vector<float>& targets, double gamma,
-                  std::vector<float>* dlogits, int* bit_errors,
-                  double margin = 0,
-                  const std::vector<float>* reference = nullptr);
-
-// The message term on a render: returns BCE(targets, D(image[crop])) (crop
-// in image pixels, empty = all of it) and adds gamma * d BCE / d image into
-// grad_image (image's shape); bit_errors (if not null) gets the errors of
-// the decoded bits.
-// margin > 0 moves each logit by margin towards the wrong side first;
-// `reference` logits are subtracted before (see MessageBce).
-double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
-                      const PixelRect& crop, const std::vector<float>& targets,
-                      double gamma, ImageRGB* grad_image, int* bit_errors,
-                      double margin = 0,
-                      const std::vector<float>* reference = nullptr);
-
-// gamma * BCE(targets, D(render(model)[crop])) and its gradient w.r.t. the
-// model, the render taken over options.rect (as Step does); for checks.
-// AddMessageLoss read through a JPEG round trip at `quality` (1-100) of the
-// crop: loss and logits are those of the compressed crop, and its image
-// gradient is added at the crop unchanged (straight-through estimator: the
-// quantisation has no useful derivative; MBRS and StegaStamp train so).
-double AddJpegMessageLoss(BitDecoder& decoder, const ImageRGB& image,
-                          const PixelRect& crop, int quality,
-                          const std::vector<float>& targets, double gamma,
-                          ImageRGB* grad_image, int* bit_errors, double margin,
-                          const std::vector<float>* reference);
-
-double MessageLossGradient(Rasterizer& rasterizer, const GaussianModel& model,
-                           const RenderCamera& camera,
-                           const RenderOptions& options, const PixelRect& crop,
-                           BitDecoder& decoder,
-                           const std::vector<float>& targets, double gamma,
-                           GaussianGradients* grads);
 
 }  // namespace watergs
