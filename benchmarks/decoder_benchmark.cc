@@ -35,7 +35,7 @@
 
 #include "benchmarks/benchmark_util.h"
 #include "gaussian/device.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"
 #include "watermark/feature_decoder.h"

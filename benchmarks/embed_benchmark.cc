@@ -20,7 +20,7 @@
 
 #include "benchmarks/synthetic_scene.h"
 #include "gaussian/device.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "watermark/bit_decoder.h"

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "benchmarks/benchmark_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 
 namespace {
 

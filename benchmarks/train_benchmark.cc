@@ -22,10 +22,10 @@
 
 #include "gaussian/density_strategy.h"
 #include "gaussian/device.h"
-#include "gaussian/file_util.h"
 #include "gaussian/loss.h"
 #include "gaussian/point_init.h"
 #include "gaussian/trainer.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/compressed_ply_io.h"
-#include "gaussian/error.h"
+#include "gaussian/formats/compressed_ply_io.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -9,8 +9,8 @@
 #include <string>
 #include <utility>
 
-#include "gaussian/error.h"
 #include "gaussian/point_kdtree.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <sstream>
 
-#include "gaussian/error.h"
-#include "gaussian/text_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/text_util.h"
 
 namespace watergs {
 namespace {

@@ -13,14 +13,14 @@
 #include "distortion/chunk_quantize.h"
 #include "distortion/decimate.h"
 #include "distortion/significance_prune.h"
-#include "gaussian/compressed_ply_io.h"
-#include "gaussian/error.h"
+#include "gaussian/formats/compressed_ply_io.h"
+#include "gaussian/formats/sog_io.h"
+#include "gaussian/formats/splat_io.h"
+#include "gaussian/formats/spz_io.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/sh.h"
-#include "gaussian/sog_io.h"
-#include "gaussian/splat_io.h"
-#include "gaussian/spz_io.h"
-#include "gaussian/text_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/text_util.h"
 
 namespace watergs {
 namespace {

@@ -16,8 +16,8 @@
 
 #include "distortion/distortion_layer.h"
 #include "gaussian/camera.h"
+#include "gaussian/formats/model_io.h"
 #include "gaussian/gaussian_model.h"
-#include "gaussian/model_io.h"
 
 namespace watergs {
 

@@ -6,7 +6,7 @@
 #include <numeric>
 #include <string>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 

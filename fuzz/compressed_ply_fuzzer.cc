@@ -1,9 +1,9 @@
 // libFuzzer target: the PlayCanvas compressed PLY reader
-// (gaussian/compressed_ply_io.h). A file that reads must hold only finite
-// values and must encode and decode again to as many Gaussians of the same
-// SH degree.
+// (gaussian/formats/compressed_ply_io.h). A file that reads must hold only
+// finite values and must encode and decode again to as many Gaussians of the
+// same SH degree.
 #include "fuzz/fuzz_support.h"
-#include "gaussian/compressed_ply_io.h"
+#include "gaussian/formats/compressed_ply_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace watergs;

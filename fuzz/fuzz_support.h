@@ -19,8 +19,8 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
 #include "gaussian/gaussian_model.h"
+#include "gaussian/util/error.h"
 #include "plugin/reconstruction.h"
 #include "plugin/reconstruction_io.h"
 

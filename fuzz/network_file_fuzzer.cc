@@ -6,7 +6,7 @@
 #include <algorithm>
 
 #include "fuzz/fuzz_support.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/file_util.h"
 #include "watermark/hidden_model.h"
 #include "watermark/network_file.h"
 

@@ -1,10 +1,11 @@
-// libFuzzer target: the 3DGS PLY reader (gaussian/ply_io.h). A file that reads
-// must also be written back in its own layout and read again unchanged
-// (binary: model values bit for bit; ascii: same number of Gaussians).
+// libFuzzer target: the 3DGS PLY reader (gaussian/formats/ply_io.h). A file
+// that reads must also be written back in its own layout and read again
+// unchanged (binary: model values bit for bit; ascii: same number of
+// Gaussians).
 #include <cstring>
 
 #include "fuzz/fuzz_support.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 
 namespace {
 

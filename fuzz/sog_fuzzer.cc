@@ -1,15 +1,15 @@
-// libFuzzer target: the SOG reader (gaussian/sog_io.h). An input starting
-// with "PK" is a bundled .sog (ZIP, CRC-checked); any other is meta.json and
-// the images it names, split by kSogFuzzSeparator and handed out in the order
-// the decoder asks for them, so that mutations reach the JSON and WebP
-// parsers past the ZIP's checksums. A file that reads must hold only finite
-// values and (checked on one input in 16) must encode and decode again to as
-// many Gaussians of the same SH degree.
+// libFuzzer target: the SOG reader (gaussian/formats/sog_io.h). An input
+// starting with "PK" is a bundled .sog (ZIP, CRC-checked); any other is
+// meta.json and the images it names, split by kSogFuzzSeparator and handed out
+// in the order the decoder asks for them, so that mutations reach the JSON and
+// WebP parsers past the ZIP's checksums. A file that reads must hold only
+// finite values and (checked on one input in 16) must encode and decode again
+// to as many Gaussians of the same SH degree.
 #include <cstring>
 #include <vector>
 
 #include "fuzz/fuzz_support.h"
-#include "gaussian/sog_io.h"
+#include "gaussian/formats/sog_io.h"
 
 namespace {
 

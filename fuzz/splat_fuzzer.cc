@@ -1,8 +1,8 @@
-// libFuzzer target: the antimatter15 .splat reader (gaussian/splat_io.h). A
-// file that reads must hold only finite values, and encoding it must give a
-// file of the same size that reads again.
+// libFuzzer target: the antimatter15 .splat reader
+// (gaussian/formats/splat_io.h). A file that reads must hold only finite
+// values, and encoding it must give a file of the same size that reads again.
 #include "fuzz/fuzz_support.h"
-#include "gaussian/splat_io.h"
+#include "gaussian/formats/splat_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace watergs;

@@ -1,8 +1,8 @@
-// libFuzzer target: the .spz reader (gaussian/spz_io.h), gzip included. A
-// file that reads must hold only finite values and must encode and decode
+// libFuzzer target: the .spz reader (gaussian/formats/spz_io.h), gzip included.
+// A file that reads must hold only finite values and must encode and decode
 // again to as many Gaussians of the same SH degree.
 #include "fuzz/fuzz_support.h"
-#include "gaussian/spz_io.h"
+#include "gaussian/formats/spz_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace watergs;

@@ -6,8 +6,8 @@
 #include <cstring>
 #include <limits>
 
-#include "gaussian/error.h"
 #include "gaussian/sh.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "gaussian/adam.h"
-#include "gaussian/file_util.h"
 #include "gaussian/gaussian_model.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 

@@ -7,8 +7,8 @@
 #include <numeric>
 #include <string>
 
-#include "gaussian/error.h"
 #include "gaussian/sh.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

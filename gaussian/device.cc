@@ -5,7 +5,7 @@
 #include <iostream>
 #include <mutex>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 #ifdef WATERGS_WITH_CUDA
 #include "gaussian/cuda/cuda_device.h"

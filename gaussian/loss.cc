@@ -10,7 +10,7 @@
 #include <omp.h>
 #endif
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -6,8 +6,8 @@
 #include <cstdint>
 #include <string>
 
-#include "gaussian/error.h"
 #include "gaussian/point_kdtree.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -1,6 +1,6 @@
 #include "gaussian/rasterizer.h"
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 

@@ -10,10 +10,10 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/progress.h"
 #include "gaussian/projection.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
 
 #ifdef WATERGS_WITH_CUDA
 #include "gaussian/cuda/cuda_rasterizer_device.h"

@@ -8,7 +8,7 @@
 #include <map>
 #include <memory>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -14,9 +14,9 @@
 #include <set>
 #include <utility>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/progress.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
 #include "plugin/colmap_database.h"
 #include "plugin/model_analyzer.h"
 #include "plugin/reconstruction_io.h"

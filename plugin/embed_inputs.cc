@@ -4,8 +4,8 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "gaussian/formats/model_io.h"
 #include "gaussian/loss.h"
-#include "gaussian/model_io.h"
 #include "watermark/message.h"
 
 namespace watergs {

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "gaussian/device.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 #include "gaussian/rasterizer.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"

@@ -9,8 +9,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <vector>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 

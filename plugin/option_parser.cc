@@ -6,7 +6,7 @@
 #include <iostream>
 #include <sstream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace po = boost::program_options;
 

@@ -8,7 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/message.h"
 #include "watermark/verification.h"
 

@@ -7,7 +7,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 

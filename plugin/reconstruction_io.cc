@@ -13,8 +13,8 @@
 #include <sstream>
 #include <string_view>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 

@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "watermark/message.h"
 #include "watermark/network_file.h"
 

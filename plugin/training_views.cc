@@ -8,8 +8,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/image_file.h"
 
 namespace watergs {

@@ -14,7 +14,7 @@
 #include <tuple>
 #include <unordered_map>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "plugin/image_file.h"
 #include "plugin/image_header.h"
 #include "plugin/reconstruction_io.h"

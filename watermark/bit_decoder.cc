@@ -5,7 +5,7 @@
 
 #include <cstring>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/decoder.h"
 #include "watermark/feature_decoder.h"
 #include "watermark/network_file.h"

@@ -8,8 +8,8 @@
 #include <memory>
 #include <sstream>
 
-#include "gaussian/error.h"
-#include "gaussian/progress.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/progress.h"
 #include "watermark/embedder.h"
 
 namespace watergs {

@@ -1,7 +1,7 @@
 // Frozen universal decoder (see decoder.h).
 #include "watermark/decoder.h"
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 

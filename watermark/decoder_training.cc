@@ -9,8 +9,8 @@
 #include <sstream>
 #include <string>
 
-#include "gaussian/error.h"
-#include "gaussian/progress.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/progress.h"
 #include "watermark/image_reading.h"
 
 #ifdef WATERGS_WITH_CUDA

@@ -9,10 +9,10 @@
 #include <sstream>
 
 #include "gaussian/checkpoint.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/progress.h"
 #include "gaussian/projection.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
 #include "watermark/extractor.h"
 #include "watermark/texture_masking.h"
 

@@ -8,9 +8,9 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "gaussian/error.h"
 #include "gaussian/loss.h"
-#include "gaussian/progress.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/progress.h"
 #include "watermark/image_quality.h"
 #include "watermark/view_aggregation.h"
 

@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/view_aggregation.h"
 
 namespace watergs {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -7,8 +7,8 @@
 #include <random>
 #include <sstream>
 
-#include "gaussian/error.h"
-#include "gaussian/text_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/text_util.h"
 #include "watermark/image_noise.h"
 #include "watermark/network_image.h"
 

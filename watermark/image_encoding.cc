@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/network_image.h"
 
 namespace watergs {

@@ -6,7 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -6,7 +6,7 @@
 #include <limits>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

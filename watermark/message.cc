@@ -5,7 +5,7 @@
 #include <cctype>
 #include <fstream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

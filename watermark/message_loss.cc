@@ -5,7 +5,7 @@
 #include <memory>
 #include <string>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/image_attacks.h"
 #include "watermark/nn_layers.h"
 #include "watermark/tensor.h"

@@ -45,7 +45,7 @@ struct NetworkFile {
 };
 
 // Version 2 files end with the standard FNV-1a 64 checksum (Fnv1a64,
-// gaussian/file_util.h) of the bytes before it; version 1 files (written
+// gaussian/util/file_util.h) of the bytes before it; version 1 files (written
 // before 2026-11-27) with FNV-1a from an offset basis one digit short
 // (1469598103934665603), still read.
 inline constexpr uint32_t kNetworkFileVersion = 2;

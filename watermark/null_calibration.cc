@@ -8,7 +8,7 @@
 #include <random>
 #include <sstream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/verification.h"
 
 namespace watergs {

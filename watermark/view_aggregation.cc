@@ -5,7 +5,7 @@
 #include <string>
 #include <utility>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

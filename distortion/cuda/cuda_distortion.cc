@@ -9,7 +9,7 @@
 
 #include "distortion/cuda/distortion_kernels.h"
 #include "gaussian/cuda/cuda_check.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

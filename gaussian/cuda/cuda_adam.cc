@@ -8,8 +8,8 @@
 #include "gaussian/cuda/adam_kernels.h"
 #include "gaussian/cuda/cuda_check.h"
 #include "gaussian/cuda/cuda_device.h"
-#include "gaussian/error.h"
 #include "gaussian/sh.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

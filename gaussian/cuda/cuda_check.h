@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 

@@ -11,8 +11,8 @@
 #include "gaussian/cuda/cuda_device.h"
 #include "gaussian/cuda/density_kernels.h"
 #include "gaussian/density_strategy.h"
-#include "gaussian/error.h"
 #include "gaussian/gaussian_model.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

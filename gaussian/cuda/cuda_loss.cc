@@ -6,7 +6,7 @@
 
 #include "gaussian/cuda/cuda_check.h"
 #include "gaussian/cuda/loss_kernels.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

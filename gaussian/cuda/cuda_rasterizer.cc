@@ -21,9 +21,9 @@
 #include "gaussian/cuda/cuda_rasterizer_device.h"
 #include "gaussian/cuda/device_buffer.h"
 #include "gaussian/cuda/raster_kernels.h"
-#include "gaussian/error.h"
 #include "gaussian/projection.h"
 #include "gaussian/tile_binning.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace cuda_raster {

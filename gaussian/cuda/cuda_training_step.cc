@@ -10,7 +10,7 @@
 
 #include "gaussian/cpu_rasterizer.h"
 #include "gaussian/cuda/cuda_check.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 CudaTrainingStep::CudaTrainingStep(CudaRasterizer* rasterizer,

@@ -11,10 +11,10 @@
 #include <vector>
 
 #include "gaussian/device.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
-#include "gaussian/progress.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
 #include "plugin/command.h"
 #include "plugin/embed_inputs.h"
 #include "plugin/option_parser.h"

@@ -8,8 +8,8 @@
 #include <random>
 #include <sstream>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "watermark/bit_decoder.h"

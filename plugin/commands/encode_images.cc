@@ -15,10 +15,10 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
 #include "gaussian/loss.h"
-#include "gaussian/progress.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
 #include "plugin/command.h"
 #include "plugin/image_file.h"
 #include "plugin/option_parser.h"

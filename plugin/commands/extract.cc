@@ -15,9 +15,9 @@
 
 #include "distortion/file_attacks.h"
 #include "gaussian/device.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/model_io.h"
+#include "gaussian/formats/model_io.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"

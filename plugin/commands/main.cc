@@ -4,7 +4,7 @@
 #include <exception>
 #include <iostream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "plugin/command.h"
 
 namespace {

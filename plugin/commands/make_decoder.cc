@@ -9,8 +9,8 @@
 #include <random>
 #include <sstream>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "watermark/decoder_training.h"

@@ -3,8 +3,8 @@
 #include <iostream>
 #include <string>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/reconstruction_io.h"

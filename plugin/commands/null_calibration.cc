@@ -17,10 +17,10 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/progress.h"
-#include "gaussian/text_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
+#include "gaussian/util/text_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "watermark/bit_decoder.h"

@@ -11,9 +11,9 @@
 #include <vector>
 
 #include "gaussian/device.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/text_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/text_util.h"
 #include "plugin/colmap_workflow.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"

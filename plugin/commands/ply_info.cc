@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/model_io.h"
+#include "gaussian/formats/model_io.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 

@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <string>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "plugin/colmap_workflow.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"

@@ -8,12 +8,12 @@
 #include <vector>
 
 #include "gaussian/device.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/model_io.h"
-#include "gaussian/progress.h"
+#include "gaussian/formats/model_io.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/trainer.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
 #include "plugin/command.h"
 #include "plugin/image_file.h"
 #include "plugin/option_parser.h"

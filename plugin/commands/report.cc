@@ -13,10 +13,10 @@
 #include <vector>
 
 #include "gaussian/device.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/model_io.h"
-#include "gaussian/text_util.h"
+#include "gaussian/formats/model_io.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/text_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/ownership_report.h"

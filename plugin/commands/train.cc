@@ -12,13 +12,13 @@
 #include <vector>
 
 #include "gaussian/device.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 #include "gaussian/point_init.h"
-#include "gaussian/progress.h"
-#include "gaussian/text_util.h"
 #include "gaussian/trainer.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
+#include "gaussian/util/text_util.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"

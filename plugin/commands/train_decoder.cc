@@ -4,7 +4,7 @@
 // runs the training steps on the GPU (docs/decoder_training.md).
 #include <iostream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "watermark/decoder_training.h"

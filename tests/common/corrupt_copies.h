@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs::testing {
 

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs::testing {
 

@@ -11,8 +11,8 @@
 #include <set>
 
 #include "distortion/file_attacks.h"
-#include "gaussian/compressed_ply_io.h"
-#include "gaussian/error.h"
+#include "gaussian/formats/compressed_ply_io.h"
+#include "gaussian/util/error.h"
 #include "tests/common/random_model.h"
 
 namespace watergs {

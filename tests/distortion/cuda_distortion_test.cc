@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "distortion/distortion_layer.h"
-#include "gaussian/error.h"
 #include "gaussian/gaussian_model.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 
 #ifdef WATERGS_WITH_CUDA

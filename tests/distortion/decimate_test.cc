@@ -12,7 +12,7 @@
 #include <set>
 
 #include "distortion/file_attacks.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/random_model.h"
 
 namespace watergs {

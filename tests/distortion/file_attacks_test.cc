@@ -10,9 +10,9 @@
 #include <cmath>
 #include <set>
 
-#include "gaussian/error.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/sh.h"
+#include "gaussian/util/error.h"
 #include "tests/common/look_at.h"
 #include "tests/common/random_model.h"
 

@@ -6,7 +6,7 @@
 #include <Eigen/LU>
 
 #include "distortion/file_attacks.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/file_util.h"
 #include "tests/common/fuzz_regressions.h"
 
 namespace watergs {

@@ -10,7 +10,7 @@
 #include <random>
 
 #include "distortion/file_attacks.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/look_at.h"
 #include "tests/common/random_model.h"
 

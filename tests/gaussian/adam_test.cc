@@ -11,8 +11,8 @@
 #include <random>
 #include <utility>
 
-#include "gaussian/error.h"
 #include "gaussian/sh.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -9,9 +9,9 @@
 #include <cmath>
 
 #include "gaussian/cpu_rasterizer.h"
-#include "gaussian/error.h"
 #include "gaussian/reference_rasterizer.h"
 #include "gaussian/sh.h"
+#include "gaussian/util/error.h"
 #include "tests/gaussian/rasterizer_test_scenes.h"
 
 namespace watergs {

@@ -3,7 +3,7 @@
 // rotation word, 8-8-8-8 colour with and without chunk colour ranges, uchar
 // SH), round-trip error bounds from each chunk's ranges, Morton order, and
 // one-line refusals of truncated, padded and malformed files.
-#include "gaussian/compressed_ply_io.h"
+#include "gaussian/formats/compressed_ply_io.h"
 
 #include <gtest/gtest.h>
 
@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/refusal.h"
 
 namespace watergs {

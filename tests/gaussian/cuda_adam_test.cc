@@ -24,9 +24,9 @@
 #include <vector>
 
 #include "gaussian/adam.h"
-#include "gaussian/error.h"
 #include "gaussian/gaussian_model.h"
 #include "gaussian/rasterizer.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 
 #ifdef WATERGS_WITH_CUDA

@@ -30,9 +30,9 @@
 #include "gaussian/adam.h"
 #include "gaussian/density_strategy.h"
 #include "gaussian/device.h"
-#include "gaussian/error.h"
 #include "gaussian/gaussian_model.h"
 #include "gaussian/rasterizer.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 
 #ifdef WATERGS_WITH_CUDA

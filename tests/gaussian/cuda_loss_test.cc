@@ -15,9 +15,9 @@
 #include <cmath>
 #include <random>
 
-#include "gaussian/error.h"
 #include "gaussian/image.h"
 #include "gaussian/loss.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 
 #ifdef WATERGS_WITH_CUDA

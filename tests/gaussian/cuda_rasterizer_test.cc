@@ -32,8 +32,8 @@
 
 #include "gaussian/cpu_rasterizer.h"
 #include "gaussian/device.h"
-#include "gaussian/error.h"
 #include "gaussian/rasterizer.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 #include "tests/gaussian/rasterizer_test_scenes.h"
 

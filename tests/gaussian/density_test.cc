@@ -7,7 +7,7 @@
 #include <random>
 
 #include "gaussian/density_strategy.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -1,4 +1,4 @@
-#include "gaussian/file_util.h"
+#include "gaussian/util/file_util.h"
 
 #include <gtest/gtest.h>
 
@@ -6,7 +6,7 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

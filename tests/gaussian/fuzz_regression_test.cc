@@ -5,8 +5,8 @@
 #include <gtest/gtest.h>
 
 #include "gaussian/checkpoint.h"
-#include "gaussian/file_util.h"
-#include "gaussian/sog_io.h"
+#include "gaussian/formats/sog_io.h"
+#include "gaussian/util/file_util.h"
 #include "tests/common/fuzz_regressions.h"
 
 namespace watergs {

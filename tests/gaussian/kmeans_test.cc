@@ -4,7 +4,7 @@
 // labels name the nearest entry; k-means labels every point with its exact
 // nearest centroid, never worsens with more rounds, is reproducible, and
 // gives every point its own centroid when k = n.
-#include "gaussian/kmeans.h"
+#include "gaussian/formats/kmeans.h"
 
 #include <gtest/gtest.h>
 

@@ -17,9 +17,9 @@
 #include <random>
 
 #include "gaussian/checkpoint.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {

@@ -1,7 +1,7 @@
 // Tests of the one model loader: formats told by content whatever the file
 // is called, writers chosen by extension, refusals of what no reader takes,
 // and no NaN/Inf reaching a parameter from any format.
-#include "gaussian/model_io.h"
+#include "gaussian/formats/model_io.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -14,12 +14,12 @@
 #include <sstream>
 #include <string>
 
-#include "gaussian/compressed_ply_io.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/sog_io.h"
-#include "gaussian/splat_io.h"
-#include "gaussian/spz_io.h"
+#include "gaussian/formats/compressed_ply_io.h"
+#include "gaussian/formats/sog_io.h"
+#include "gaussian/formats/splat_io.h"
+#include "gaussian/formats/spz_io.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "tests/common/refusal.h"
 
 namespace watergs {

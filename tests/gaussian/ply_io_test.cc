@@ -1,6 +1,6 @@
 // Tests of the 3DGS PLY reader/writer: Inria byte layout, byte-identical round
 // trips, files from other tools, and refusal of malformed files.
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {

@@ -1,7 +1,7 @@
 // Tests of the progress-line helpers: the running average shown with a
 // loss, the ETA estimate, the duration format of the ETA, and the progress
 // observer (what the Python module's callbacks and Ctrl-C go through).
-#include "gaussian/progress.h"
+#include "gaussian/util/progress.h"
 
 #include <gtest/gtest.h>
 

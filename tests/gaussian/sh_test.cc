@@ -17,8 +17,8 @@
 #include <vector>
 
 #include "gaussian/cpu_rasterizer.h"
+#include "gaussian/formats/ply_io.h"
 #include "gaussian/gaussian_model.h"
-#include "gaussian/ply_io.h"
 #include "tests/common/look_at.h"
 
 namespace watergs {

@@ -4,7 +4,7 @@
 // layout (meta.json beside its images) read the same as the bundle, 8-bit
 // alphas of 0 and 255 read as finite logits, and one-line refusals of every
 // malformed part: ZIP, JSON, version, fields, images, tags, indices.
-#include "gaussian/sog_io.h"
+#include "gaussian/formats/sog_io.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -19,10 +19,10 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/model_io.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/model_io.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "tests/common/random_model.h"
 #include "tests/common/refusal.h"
 

@@ -2,7 +2,7 @@
 // record, round-trip error bounds from the 8-bit steps (the writer truncates
 // as splat-transform does), scale 0 read as the log-scale floor, and
 // one-line refusals of sizes and values no .splat file holds.
-#include "gaussian/splat_io.h"
+#include "gaussian/formats/splat_io.h"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 #include <random>
 #include <string>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/refusal.h"
 
 namespace watergs {

@@ -2,7 +2,7 @@
 // format's fixed-point positions, 8-bit alphas, colours, log-scales, both
 // rotation encodings and SH), round-trip error bounds from each attribute's
 // quantisation step, and one-line refusals of truncated and corrupt files.
-#include "gaussian/spz_io.h"
+#include "gaussian/formats/spz_io.h"
 
 #include <gtest/gtest.h>
 #include <zlib.h>
@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/refusal.h"
 
 namespace watergs {

@@ -11,9 +11,9 @@
 #include <random>
 
 #include "gaussian/adam.h"
-#include "gaussian/error.h"
 #include "gaussian/loss.h"
 #include "gaussian/trainer.h"
+#include "gaussian/util/error.h"
 #include "tests/common/look_at.h"
 
 namespace watergs {

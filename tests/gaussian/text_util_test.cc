@@ -1,5 +1,5 @@
 // Tests of the shared number parser: the whole text must be one finite number.
-#include "gaussian/text_util.h"
+#include "gaussian/util/text_util.h"
 
 #include <gtest/gtest.h>
 

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <sstream>
 
-#include "gaussian/file_util.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/reconstruction_io.h"
 #include "plugin/workspace.h"
 #include "tests/plugin/synthetic_model.h"

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <string>
 
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 #include "synthetic_model.h"
 #include "tests/plugin/rendered_workspace.h"
 #include "watermark/hidden_model.h"

@@ -12,7 +12,7 @@
 #include <regex>
 #include <string>
 
-#include "gaussian/file_util.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/image_file.h"
 #include "tests/plugin/rendered_workspace.h"
 #include "tests/plugin/synthetic_model.h"

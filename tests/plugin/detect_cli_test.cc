@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/image_file.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"

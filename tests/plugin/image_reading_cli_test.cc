@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/file_util.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/image_file.h"
 #include "plugin/workspace.h"
 #include "tests/plugin/rendered_images.h"

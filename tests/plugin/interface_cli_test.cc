@@ -10,8 +10,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "synthetic_model.h"

@@ -8,8 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/image_file.h"
 #include "plugin/workspace.h"
 #include "tests/plugin/rendered_images.h"

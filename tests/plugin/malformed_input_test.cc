@@ -12,10 +12,10 @@
 #include <filesystem>
 #include <fstream>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 #include "gaussian/point_init.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/reconstruction_io.h"
 #include "plugin/training_views.h"
 #include "synthetic_model.h"

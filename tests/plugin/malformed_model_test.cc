@@ -6,8 +6,8 @@
 #include <cstring>
 #include <filesystem>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/reconstruction_io.h"
 #include "tests/plugin/synthetic_model.h"
 

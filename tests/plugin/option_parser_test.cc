@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "gaussian/device.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/plugin/synthetic_model.h"
 
 namespace watergs {

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/reconstruction_io.h"
 #include "synthetic_model.h"
 #include "tests/plugin/rendered_workspace.h"

@@ -12,8 +12,8 @@
 #include <sstream>
 #include <string>
 
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {

@@ -11,7 +11,7 @@
 #include <cmath>
 #include <string>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -11,7 +11,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "plugin/pose_comparison.h"
 #include "plugin/reconstruction_io.h"
 #include "tests/plugin/synthetic_model.h"

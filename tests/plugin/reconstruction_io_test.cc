@@ -9,8 +9,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/model_analyzer.h"
 #include "tests/plugin/synthetic_model.h"
 

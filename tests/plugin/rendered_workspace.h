@@ -10,12 +10,12 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/file_util.h"
+#include "gaussian/formats/ply_io.h"
 #include "gaussian/gaussian_model.h"
 #include "gaussian/image.h"
-#include "gaussian/ply_io.h"
 #include "gaussian/point_init.h"
 #include "gaussian/rasterizer.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/reconstruction_io.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"

@@ -14,8 +14,8 @@
 #include <random>
 #include <sstream>
 
-#include "gaussian/file_util.h"
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/ownership_report.h"
 #include "plugin/report_evidence.h"
 #include "tests/plugin/rendered_workspace.h"

@@ -16,7 +16,7 @@
 #include <string>
 #include <tuple>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "plugin/colmap_database.h"
 
 namespace watergs {

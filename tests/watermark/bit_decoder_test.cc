@@ -18,8 +18,8 @@
 #include <utility>
 #include <vector>
 
-#include "gaussian/error.h"
 #include "gaussian/rasterizer.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 #include "tests/common/look_at.h"
 #include "watermark/decoder.h"

@@ -13,7 +13,7 @@
 #include <random>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/embed_scene.h"
 #include "watermark/embedder.h"
 

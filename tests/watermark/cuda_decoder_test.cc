@@ -30,7 +30,7 @@
 #include <vector>
 
 #include "gaussian/cuda/device_buffer.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 #include "watermark/cuda/cuda_decoder_training.h"
 #include "watermark/cuda/cuda_hidden.h"

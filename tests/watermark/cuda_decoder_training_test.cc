@@ -37,7 +37,7 @@
 #include <vector>
 
 #include "gaussian/device.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 #include "watermark/decoder_training.h"
 #include "watermark/hidden_model.h"

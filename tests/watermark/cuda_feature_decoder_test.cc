@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "gaussian/cuda/device_buffer.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/cuda_test.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/feature_decoder.h"

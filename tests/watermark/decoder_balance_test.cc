@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/feature_decoder_calibration.h"
 #include "watermark/message.h"

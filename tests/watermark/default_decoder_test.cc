@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <random>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "tests/common/corrupt_copies.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/decoder_training.h"
@@ -37,7 +37,7 @@ TEST(DefaultDecoderTest, IsASmallFortyEightBitFeatureDecoder) {
 // The shipped file, byte for byte: the README's and docs' figures (demo
 // verdicts, balance, false positives) were measured with it, so a rebuilt or
 // edited decoder must change this pin together with them. Fnv1a64
-// (gaussian/file_util.h) of all its bytes (the file's trailing checksum
+// (gaussian/util/file_util.h) of all its bytes (the file's trailing checksum
 // covers only the bytes before it); `sha256sum
 // watermark/models/decoder_48.bin` gives
 // 9cce9644c665848f29d350e9a33a42344555882f82e636fbb83fb94266aa6b51. The

@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <random>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/embed_scene.h"
 #include "watermark/embedder.h"
 #include "watermark/extractor.h"

@@ -17,7 +17,7 @@
 
 #include "gaussian/checkpoint.h"
 #include "gaussian/device.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/backend_parity.h"
 #include "tests/common/bit_identical.h"
 #include "tests/common/cuda_test.h"

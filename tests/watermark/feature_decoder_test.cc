@@ -12,7 +12,7 @@
 #include <filesystem>
 #include <random>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"

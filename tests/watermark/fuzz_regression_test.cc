@@ -3,7 +3,7 @@
 // with a one-line error, or handled cleanly if it is marked *.valid.
 #include <gtest/gtest.h>
 
-#include "gaussian/file_util.h"
+#include "gaussian/util/file_util.h"
 #include "tests/common/fuzz_regressions.h"
 #include "watermark/hidden_model.h"
 #include "watermark/lpips.h"

@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

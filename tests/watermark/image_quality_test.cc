@@ -8,7 +8,7 @@
 #include <cmath>
 #include <random>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

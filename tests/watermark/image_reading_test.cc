@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "watermark/decoder_training.h"
 
 namespace watergs {

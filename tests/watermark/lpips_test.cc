@@ -14,8 +14,8 @@
 #include <fstream>
 #include <random>
 
-#include "gaussian/error.h"
 #include "gaussian/rasterizer.h"
+#include "gaussian/util/error.h"
 #include "tests/common/look_at.h"
 #include "watermark/evaluation.h"
 #include "watermark/hidden_model.h"

@@ -10,8 +10,8 @@
 #include <fstream>
 #include <limits>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "watermark/decoder.h"
 #include "watermark/hidden_model.h"
 #include "watermark/network_file.h"

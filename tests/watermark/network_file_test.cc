@@ -7,8 +7,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "watermark/hidden_model.h"
 
 namespace watergs {

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/verification.h"
 
 namespace watergs {

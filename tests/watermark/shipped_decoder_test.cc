@@ -11,8 +11,8 @@
 #include <fstream>
 #include <random>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "tests/common/corrupt_copies.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"

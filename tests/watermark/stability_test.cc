@@ -8,7 +8,7 @@
 #include <limits>
 #include <random>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "tests/common/look_at.h"
 #include "watermark/embedder.h"
 #include "watermark/hidden_model.h"

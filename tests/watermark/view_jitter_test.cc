@@ -6,7 +6,7 @@
 
 #include <random>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 

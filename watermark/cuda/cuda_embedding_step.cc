@@ -8,7 +8,7 @@
 
 #include "gaussian/cpu_rasterizer.h"
 #include "gaussian/cuda/cuda_check.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/embedder.h"
 
 namespace watergs {

@@ -6,7 +6,7 @@
 #include <string>
 
 #include "gaussian/cuda/cuda_check.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/cuda/feature_kernels.h"
 #include "watermark/network_file.h"
 

@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "gaussian/cuda/cuda_check.h"
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 #include "watermark/cuda/nn_kernels.h"
 
 namespace watergs {

@@ -1,4 +1,4 @@
-#include "gaussian/file_util.h"
+#include "gaussian/util/file_util.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -14,7 +14,7 @@
 #include <utility>
 #include <vector>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 

@@ -1,5 +1,5 @@
 // PLY reading and writing for 3DGS models (see ply_io.h for the layout).
-#include "gaussian/ply_io.h"
+#include "gaussian/formats/ply_io.h"
 
 #include <algorithm>
 #include <bit>
@@ -16,8 +16,8 @@
 #include <sstream>
 #include <type_traits>
 
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {

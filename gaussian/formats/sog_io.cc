@@ -1,6 +1,6 @@
 // PlayCanvas SOG reader and writer (see sog_io.h): libzip for the bundle,
 // libwebp for the images, nlohmann::json for meta.json.
-#include "gaussian/sog_io.h"
+#include "gaussian/formats/sog_io.h"
 
 #include <webp/decode.h>
 #include <webp/encode.h>
@@ -16,11 +16,11 @@
 #include <nlohmann/json.hpp>
 #include <utility>
 
-#include "gaussian/compressed_ply_io.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/kmeans.h"
-#include "gaussian/progress.h"
+#include "gaussian/formats/compressed_ply_io.h"
+#include "gaussian/formats/kmeans.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "gaussian/util/progress.h"
 
 namespace watergs {
 namespace {

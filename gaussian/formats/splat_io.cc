@@ -1,13 +1,13 @@
 // .splat reading and writing (see splat_io.h for the layout).
-#include "gaussian/splat_io.h"
+#include "gaussian/formats/splat_io.h"
 
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
 
-#include "gaussian/codec_util.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/formats/codec_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {

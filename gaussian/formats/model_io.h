@@ -14,8 +14,8 @@
 
 #include <string>
 
+#include "gaussian/formats/ply_io.h"
 #include "gaussian/gaussian_model.h"
-#include "gaussian/ply_io.h"
 
 namespace watergs {
 

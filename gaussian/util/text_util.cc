@@ -1,5 +1,5 @@
 // Number parsing shared by the option and attack parsers.
-#include "gaussian/text_util.h"
+#include "gaussian/util/text_util.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 // Format detection and the one model loader (see model_io.h).
-#include "gaussian/model_io.h"
+#include "gaussian/formats/model_io.h"
 
 #include <algorithm>
 #include <cctype>
@@ -9,12 +9,12 @@
 #include <fstream>
 #include <vector>
 
-#include "gaussian/compressed_ply_io.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
-#include "gaussian/sog_io.h"
-#include "gaussian/splat_io.h"
-#include "gaussian/spz_io.h"
+#include "gaussian/formats/compressed_ply_io.h"
+#include "gaussian/formats/sog_io.h"
+#include "gaussian/formats/splat_io.h"
+#include "gaussian/formats/spz_io.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {

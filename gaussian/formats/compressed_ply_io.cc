@@ -1,5 +1,5 @@
 // PlayCanvas compressed PLY reading and writing (see compressed_ply_io.h).
-#include "gaussian/compressed_ply_io.h"
+#include "gaussian/formats/compressed_ply_io.h"
 
 #include <algorithm>
 #include <array>
@@ -9,9 +9,9 @@
 #include <map>
 #include <sstream>
 
-#include "gaussian/codec_util.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/formats/codec_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {

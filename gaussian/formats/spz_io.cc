@@ -1,5 +1,5 @@
 // .spz reading and writing (see spz_io.h for the layout).
-#include "gaussian/spz_io.h"
+#include "gaussian/formats/spz_io.h"
 
 #include <zlib.h>
 #include <zstd.h>
@@ -10,9 +10,9 @@
 #include <cmath>
 #include <vector>
 
-#include "gaussian/codec_util.h"
-#include "gaussian/error.h"
-#include "gaussian/file_util.h"
+#include "gaussian/formats/codec_util.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {

@@ -1,5 +1,5 @@
 // 1D quantiser and k-means for codebook formats (see kmeans.h).
-#include "gaussian/kmeans.h"
+#include "gaussian/formats/kmeans.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <numeric>
 #include <random>
 
-#include "gaussian/error.h"
+#include "gaussian/util/error.h"
 
 namespace watergs {
 namespace {

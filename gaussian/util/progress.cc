@@ -1,4 +1,4 @@
-#include "gaussian/progress.h"
+#include "gaussian/util/progress.h"
 
 #include <unistd.h>
 
