@@ -241,8 +241,9 @@ int RunDetect(int argc, char** argv) {
              "Renders of the raw model at this many viewpoints between the "
              "workspace's cameras, added to the registration index: an image "
              "taken far from every photo registers to a render near it (the "
-             "demo's 20 screenshots: 19 read instead of 17; ~20 s at "
-             "240x180 on 2 cores; 0 = the photos only)");
+             "demo's 20 screenshots: 19 read instead of 17; 13 s at "
+             "240x180 on 2 cores, rendered at the workspace cameras' size; 0 "
+             "= the photos only)");
   parser.Add("refine_pose", &reading.refine,
              "After registration, move each camera to where the raw model's "
              "render matches the image best (photometric least squares): "
