@@ -130,6 +130,9 @@ MpiDefault=none
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core_Memory
 SchedulerType=sched/backfill
+# A one-node cluster: look at pending jobs every 2 s (default 60) so that a job whose dependency
+# ended starts at once.
+SchedulerParameters=sched_interval=2,bf_interval=1
 ReturnToService=2
 MinJobAge=600
 SlurmctldTimeout=30
