@@ -8,7 +8,8 @@
 namespace watergs {
 
 // A w x h pinhole camera (focal 0.8 w, centred principal point) at `center`
-// looking at the origin, world +z up, image +y down.
+// looking at the origin, world +z up; image +y points up the world (the
+// image is upside down: these tests need a rigid camera, not an upright one).
 inline RenderCamera LookAtOrigin(const Eigen::Vector3d& center, int w, int h) {
   RenderCamera cam;
   cam.width = w, cam.height = h;

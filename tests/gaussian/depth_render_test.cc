@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "gaussian/rasterizer.h"
+#include "tests/common/flat_gaussians.h"
 
 namespace watergs {
 namespace {
@@ -18,22 +19,14 @@ GaussianModel PlaneOfGaussians(const Eigen::Vector3d& n, double c, double half,
                                double spacing, float opacity_logit = 4.f) {
   GaussianModel m;
   m.sh_degree = 0;
-  const Eigen::Quaterniond q =
-      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n);
   const int steps = int(2 * half / spacing) + 1;
   for (int i = 0; i < steps; ++i) {
     for (int j = 0; j < steps; ++j) {
       const double x = -half + i * spacing, y = -half + j * spacing;
       const double z = (c - n.x() * x - n.y() * y) / n.z();
-      m.means.insert(m.means.end(), {float(x), float(y), float(z)});
       // In-plane sigma 0.8 spacing, 1% of it along the normal.
-      const float s = float(std::log(0.8 * spacing));
-      m.log_scales.insert(m.log_scales.end(),
-                          {s, s, float(std::log(0.008 * spacing))});
-      m.quats.insert(m.quats.end(),
-                     {float(q.w()), float(q.x()), float(q.y()), float(q.z())});
-      m.opacity_logits.push_back(opacity_logit);
-      m.sh_dc.insert(m.sh_dc.end(), {0.f, 0.f, 0.f});
+      AppendFlatGaussian(&m, {x, y, z}, n, 0.8 * spacing, 0.008 * spacing,
+                         opacity_logit, {0.5f, 0.5f, 0.5f});
     }
   }
   return m;

@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <string>
@@ -16,6 +18,7 @@
 #include "gaussian/depth_render.h"
 #include "gaussian/rasterizer.h"
 #include "plugin/training_views.h"
+#include "tests/common/flat_gaussians.h"
 #include "watermark/image_attacks.h"
 
 namespace watergs {
@@ -151,29 +154,22 @@ GaussianModel TexturedRoom() {
   auto add = [&](const Eigen::Vector3d& origin, const Eigen::Vector3d& a,
                  const Eigen::Vector3d& b, double la, double lb) {
     const Eigen::Vector3d n = a.cross(b).normalized();
-    const Eigen::Quaterniond q =
-        Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n);
     double phase[3][3];
     for (auto& row : phase) {
       for (double& p : row) p = 6.28 * u(rng);
     }
     for (double s = 0; s <= la; s += spacing) {
       for (double t = 0; t <= lb; t += spacing) {
-        const Eigen::Vector3d x = origin + s * a + t * b;
-        m.means.insert(m.means.end(),
-                       {float(x.x()), float(x.y()), float(x.z())});
-        const float ls = float(std::log(0.7 * spacing));
-        m.log_scales.insert(m.log_scales.end(), {ls, ls, ls - 3.f});
-        m.quats.insert(m.quats.end(), {float(q.w()), float(q.x()), float(q.y()),
-                                       float(q.z())});
-        m.opacity_logits.push_back(5.f);
+        std::array<float, 3> rgb;
         for (int c = 0; c < 3; ++c) {
           const double wave = std::sin(2.1 * s + phase[c][0]) *
                                   std::cos(1.7 * t + phase[c][1]) +
                               0.5 * std::sin(7.3 * (s + t) + phase[c][2]);
           const double v = 0.5 + 0.2 * wave + 0.25 * (u(rng) - 0.5);
-          m.sh_dc.push_back(RgbToShDc(float(std::clamp(v, 0.0, 1.0))));
+          rgb[c] = float(std::clamp(v, 0.0, 1.0));
         }
+        AppendFlatGaussian(&m, origin + s * a + t * b, n, 0.7 * spacing,
+                           0.7 * spacing * std::exp(-3.0), 5.f, rgb);
       }
     }
   };
