@@ -90,7 +90,9 @@ def main(out):
         single.append((label, held, free, table["num_bits"]))
     lines += ["", "LPIPS: not computed (the VGG weights are not reachable from the machine that "
               "measured this; `datasets_scripts/download_lpips_weights.sh` fetches them).", ""]
-    lines += ["## One view alone (held-out photos' cameras; 12 free viewpoints between cameras)", "",
+    num_free = sorted({len(free["views"]) for _, _, free, _ in single})
+    lines += ["## One view alone (held-out photos' cameras; "
+              f"{'/'.join(map(str, num_free))} free viewpoints between cameras)", "",
               "| run | reading | held-out mean / p90 | held-out views 'present' alone at 1e-6 | "
               "free mean / p90 | free 'present' alone |", "|---|---|---|---|---|---|"]
     for label, held, free, bits in single:

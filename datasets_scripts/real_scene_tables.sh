@@ -8,6 +8,9 @@
 # rendered image, PSNR, SSIM). Resumable: every finished step is kept and skipped on a re-run (the
 # training checkpoints every 500 iterations).
 #   datasets_scripts/real_scene_tables.sh SCENE OUT [RUN ...]   (default runs: owner:0 owner:1 owner:2 blind:0)
+# A RUN of READING:SEED:STOP:NAME:EMBED ARGS (STOP may be empty) is an ablation: label
+# READING_seedSEED_NAME, the words after the fourth colon added to embed's options, e.g.
+#   'owner:0::nodl:--distortions none'   'owner:0::xyz:--mask xyz --distortions none'
 # Writes OUT/tables.md (aggregate_real_scene.py) and OUT/times.txt (seconds per stage).
 # Environment: WATERGS_BIN, DECODER, DOWNSCALE (2), ITERATIONS (7000; densification to half of it),
 # EMBED_ARGS (extra embed options for every run, e.g. --stop_margin 1).
@@ -43,20 +46,22 @@ if [ ! -f "$raw" ]; then
 fi
 
 for run in "${runs[@]}"; do
-  IFS=: read -r reading seed stop <<< "$run"
+  IFS=: read -r reading seed stop name extra <<< "$run"
   label="${reading}_seed$seed"
   stop_args=()
   if [ -n "$stop" ]; then
     label+="_stop$stop"
     stop_args=(--stop_margin "$stop")
   fi
+  read -r -a extra_args <<< "${extra:-}"
+  [ -n "${name:-}" ] && label+="_$name"
   dir="$out/probe/runs/$label"
   if ! grep -q "^$label " "$out/probe/results.txt" 2>/dev/null; then
     log "embedding $label (log $dir/embed.log)"
     # shellcheck disable=SC2086
     timed "embed+read:$label" env SCENE="$scene" RAW="$raw" DOWNSCALE="$ds" DECODER="$decoder" \
       WATERGS_BIN="$bin" bash "$root/datasets_scripts/single_view_probe.sh" "$out/probe" "$label" \
-      --reading "$reading" --seed "$seed" "${stop_args[@]}" ${EMBED_ARGS:-}
+      --reading "$reading" --seed "$seed" "${stop_args[@]}" "${extra_args[@]}" ${EMBED_ARGS:-}
   fi
   if [ ! -f "$dir/table1.json" ]; then
     log "Table 1 distortions for $label"

@@ -157,6 +157,20 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   }
   CheckDecoderJitter(options_.decoder_jitter);
   if (options_.free_view_neighbors > 0) FindNeighbors();
+  if (options_.hard_views < 0 ||
+      !(options_.hard_view_fraction >= 0 && options_.hard_view_fraction <= 1)) {
+    Fail("embed: hard_views must be >= 0 and hard_view_fraction in [0, 1]");
+  }
+  if (options_.hard_views > 0) {
+    if (options_.free_view_fraction <= 0) {
+      Fail(
+          "embed: hard viewpoints replay free-view iterations: give "
+          "free_view_fraction > 0");
+    }
+    pool_ = std::make_unique<ViewpointPool>(
+        SampleViewpointsBetween(views_, train_views_, options_.hard_views,
+                                options_.seed ^ 0x5851f42d4c957f2dull));
+  }
   targets_.assign(message_.begin(), message_.end());
   if (!options_.distortions.empty()) {
     sampler_ = std::make_unique<DistortionSampler>(options_.distortions);
@@ -267,6 +281,9 @@ std::string Embedder::RunSignature() const {
   if (options_.jpeg_quality > 0 && options_.jpeg_fraction > 0) {
     j["jpeg_layer"] = {options_.jpeg_quality, options_.jpeg_fraction};
   }
+  if (options_.hard_views > 0) {
+    j["hard_views"] = {options_.hard_views, options_.hard_view_fraction};
+  }
   j["densify"] = options_.densify;
   j["message"] = BitsToString(message_);
   j["train_views"] = train_views_.size();
@@ -296,16 +313,21 @@ void Embedder::FindNeighbors() {
   }
 }
 
+std::shared_ptr<const ImageRGB> Embedder::RenderInput(
+    const RenderCamera& camera) {
+  RenderOptions options;
+  options.background = options_.background;
+  auto target = std::make_shared<ImageRGB>();
+  rasterizer_->Forward(input_model_, camera, options, target.get(), nullptr);
+  // Renders may leave [0, 1]; a photo cannot.
+  for (float& v : target->data) v = std::clamp(v, 0.f, 1.f);
+  return target;
+}
+
 std::shared_ptr<const ImageRGB> Embedder::InputRender(size_t view) {
   if (input_renders_.empty()) input_renders_.resize(views_.NumViews());
   if (!input_renders_[view]) {
-    RenderOptions options;
-    options.background = options_.background;
-    auto target = std::make_shared<ImageRGB>();
-    rasterizer_->Forward(input_model_, views_.Camera(view), options,
-                         target.get(), nullptr);
-    for (float& v : target->data) v = std::clamp(v, 0.f, 1.f);
-    input_renders_[view] = std::move(target);
+    input_renders_[view] = RenderInput(views_.Camera(view));
   }
   return input_renders_[view];
 }
@@ -341,6 +363,9 @@ std::shared_ptr<const std::vector<float>> Embedder::ReferenceLogits(
   // The decoded patch in frame pixels: a cropped render is all crop.
   const PixelRect patch =
       plan.render_options.rect.empty() ? plan.decoder_crop : plan.crop;
+  if (plan.pool_view >= 0 && patch.empty()) {
+    return PoolReferenceLogits(plan.pool_view);
+  }
   const bool cacheable = !plan.free_view && patch.empty();
   if (cacheable) {
     if (reference_logits_.empty()) reference_logits_.resize(views_.NumViews());
@@ -358,21 +383,23 @@ std::shared_ptr<const std::vector<float>> Embedder::ReferenceLogits(
 
 void Embedder::PlanFreeView(IterationPlan* plan) {
   plan->free_view = true;
+  if (pool_ && std::uniform_real_distribution<double>(0, 1)(rng_) <
+                   options_.hard_view_fraction) {
+    const int k = pool_->Sample(&rng_);
+    if (k >= 0) {
+      plan->pool_view = k;
+      plan->camera = pool_->camera(k);
+      plan->truth = PoolTarget(k);
+      return;
+    }
+  }
   const std::vector<size_t>* near =
       neighbors_.empty() ? nullptr : &neighbors_[plan->view];
   const size_t other =
       near && !near->empty() ? (*near)[rng_() % near->size()] : NextView();
   const double t = std::uniform_real_distribution<double>(0, 1)(rng_);
   plan->camera = InterpolateCameras(plan->camera, views_.Camera(other), t);
-  RenderOptions options;
-  options.background = options_.background;
-  auto target = std::make_shared<ImageRGB>();
-  std::unique_ptr<RenderContext> context;
-  rasterizer_->Forward(input_model_, plan->camera, options, target.get(),
-                       &context);
-  // Renders may leave [0, 1]; a photo cannot.
-  for (float& v : target->data) v = std::clamp(v, 0.f, 1.f);
-  plan->truth = std::move(target);
+  plan->truth = RenderInput(plan->camera);
 }
 
 PixelRect RandomCrop(int crop_size, int width, int height,
@@ -447,6 +474,9 @@ EmbedStepStats Embedder::Step() {
   total_timings_.Add(stats.timings);
   stats.num_gaussians = num_gaussians;
   iteration_ = it;
+  if (pool_ && options_.check_every > 0 && it % options_.check_every == 0) {
+    ScorePool();
+  }
   return stats;
 }
 
@@ -589,29 +619,62 @@ const GaussianModel& Embedder::model() const {
   return model_;
 }
 
+void Embedder::RenderCurrent(const RenderCamera& camera, ImageRGB* image) {
+  RenderOptions render_options;
+  render_options.background = options_.background;
+  // The device path renders its resident model (no model download).
+  if (device_) {
+    device_->Render(camera, render_options, image);
+  } else {
+    rasterizer_->Forward(model_, camera, render_options, image, nullptr);
+  }
+  for (float& v : image->data) v = std::clamp(v, 0.f, 1.f);
+}
+
+std::shared_ptr<const ImageRGB> Embedder::PoolTarget(size_t k) {
+  if (pool_targets_.empty()) pool_targets_.resize(pool_->size());
+  if (!pool_targets_[k]) pool_targets_[k] = RenderInput(pool_->camera(k));
+  return pool_targets_[k];
+}
+
+std::shared_ptr<const std::vector<float>> Embedder::PoolReferenceLogits(
+    size_t k) {
+  if (pool_logits_.empty()) pool_logits_.resize(pool_->size());
+  if (!pool_logits_[k]) {
+    pool_logits_[k] = std::make_shared<const std::vector<float>>(
+        decoder_->Logits(*PoolTarget(k)));
+  }
+  return pool_logits_[k];
+}
+
+void Embedder::ScorePool() {
+  // Short of the margin the message term pushes towards (1 without one, so
+  // that bits barely past zero still count).
+  const double margin = options_.margin > 0 ? options_.margin : 1.0;
+  ImageRGB image;
+  for (size_t k = 0; k < pool_->size(); ++k) {
+    RenderCurrent(pool_->camera(k), &image);
+    std::vector<float> logits = decoder_->Logits(image);
+    if (options_.owner_reading) {
+      const std::vector<float>& raw = *PoolReferenceLogits(k);
+      for (size_t i = 0; i < logits.size(); ++i) logits[i] -= raw[i];
+      ResolveOwnerTies(&logits, &message_);
+    }
+    pool_->SetDeficit(k, MarginDeficit(logits, message_, margin));
+  }
+}
+
 double Embedder::DecodeViews(
     const std::vector<RenderCamera>& cameras,
     const std::vector<std::shared_ptr<const ImageRGB>>* truths,
     std::vector<double>* sum_logits, double* psnr, double* weakest) {
-  RenderOptions render_options;
-  render_options.background = options_.background;
   double mean_ber = 0;
   ImageRGB image;
   for (size_t k = 0; k < cameras.size(); ++k) {
-    // The device path renders its resident model (no model download).
-    if (device_) {
-      device_->Render(cameras[k], render_options, &image);
-    } else {
-      rasterizer_->Forward(model_, cameras[k], render_options, &image, nullptr);
-    }
-    for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+    RenderCurrent(cameras[k], &image);
     std::vector<float> logits = decoder_->Logits(image);
     if (options_.owner_reading) {
-      ImageRGB reference;
-      rasterizer_->Forward(input_model_, cameras[k], render_options, &reference,
-                           nullptr);
-      for (float& v : reference.data) v = std::clamp(v, 0.f, 1.f);
-      const std::vector<float> raw = decoder_->Logits(reference);
+      const std::vector<float> raw = decoder_->Logits(*RenderInput(cameras[k]));
       for (size_t i = 0; i < logits.size(); ++i) logits[i] -= raw[i];
       ResolveOwnerTies(&logits, &message_);
     }
@@ -692,6 +755,11 @@ bool Embedder::Run() {
         }
         line += status;
       }
+      if (pool_) {
+        std::snprintf(status, sizeof(status), "  hard %zu/%zu",
+                      pool_->NumShort(), pool_->size());
+        line += status;
+      }
       bar->Update(it, line);
     }
     if ((options_.patience > 0 && zero_ber_checks_ >= options_.patience) ||
@@ -737,6 +805,7 @@ void Embedder::SaveCheckpoint(const std::string& path) const {
   extra["rng"] = rng_text.str();
   extra["origin"] = origin_;
   extra["zero_ber_checks"] = zero_ber_checks_;
+  if (pool_) extra["pool_deficits"] = pool_->deficits();
   c.rng_state = extra.dump();
   c.run_signature = RunSignature();
   WriteCheckpoint(path, c);
@@ -784,6 +853,17 @@ void Embedder::Resume(const std::string& path) {
   rng_in >> rng_;
   origin_ = std::move(origin);
   zero_ber_checks_ = zero_ber_checks;
+  if (pool_ && extra.contains("pool_deficits")) {
+    std::vector<double> deficits;
+    try {
+      deficits = extra["pool_deficits"].get<std::vector<double>>();
+    } catch (const nlohmann::json::exception&) {
+      FailAt(path, "checkpoint embed state has fields of the wrong type");
+    }
+    if (!pool_->RestoreDeficits(deficits)) {
+      FailAt(path, "checkpoint's hard-viewpoint pool does not match the run");
+    }
+  }
   if (!rng_in || origin_.size() != model_.size()) {
     FailAt(path, "checkpoint state is corrupt");
   }

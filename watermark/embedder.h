@@ -28,6 +28,7 @@
 #include "watermark/message.h"
 #include "watermark/message_loss.h"
 #include "watermark/view_jitter.h"
+#include "watermark/viewpoint_pool.h"
 
 namespace watergs {
 
@@ -59,6 +60,13 @@ struct EmbedOptions {
   // model's render there as the image target: the message then holds in
   // views no training camera saw, at the input model's fidelity there.
   double free_view_fraction = 0;
+  // > 0: a pool of this many free viewpoints (drawn once from the seed, apart
+  // from check_free_views) that hard_view_fraction of the free-view
+  // iterations replay, each in proportion to how far it still falls short of
+  // reading every bit past the margin (scored at each check): the effort
+  // goes where single views do not read yet (viewpoint_pool.h).
+  int hard_views = 0;
+  double hard_view_fraction = 0.5;
   // Free viewpoints interpolate towards one of the view's this many nearest
   // training cameras (by centre); 0: towards any training camera. Near
   // neighbours sample the capture path, where held-out photos lie.
@@ -232,6 +240,8 @@ class Embedder {
     bool free_view = false;
     // The decoder reads the render through JPEG (options.jpeg_quality).
     bool jpeg = false;
+    // Index into the hard-viewpoint pool (-1: not a pool view).
+    int pool_view = -1;
     // The input model's logits of the decoded patch (owner's reading).
     std::shared_ptr<const std::vector<float>> reference_logits;
   };
@@ -245,9 +255,19 @@ class Embedder {
                      std::vector<double>* sum_logits, double* psnr,
                      double* weakest);
   size_t NextView();
-  // A free viewpoint between two training cameras and the input model's
-  // render there (the image target).
+  // A free viewpoint between two training cameras (or a pool view) and the
+  // input model's render there (the image target).
   void PlanFreeView(IterationPlan* plan);
+  // Renders the model being embedded (host or device) from `camera`,
+  // clamped to [0, 1].
+  void RenderCurrent(const RenderCamera& camera, ImageRGB* image);
+  // The input model's render and logits at pool view k (cached).
+  std::shared_ptr<const ImageRGB> PoolTarget(size_t k);
+  std::shared_ptr<const std::vector<float>> PoolReferenceLogits(size_t k);
+  // Decodes every pool view and records how far each falls short.
+  void ScorePool();
+  // The input model's render from `camera`, clamped to [0, 1].
+  std::shared_ptr<const ImageRGB> RenderInput(const RenderCamera& camera);
   // The input model's render from a training view (cached).
   std::shared_ptr<const ImageRGB> InputRender(size_t view);
   // The input model's logits of the patch `plan` decodes (cached for whole
@@ -288,6 +308,10 @@ class Embedder {
   GaussianModel input_model_;
   std::vector<std::shared_ptr<const ImageRGB>> input_renders_;
   std::vector<std::shared_ptr<const std::vector<float>>> reference_logits_;
+  // Hard-viewpoint replay (null when hard_views is 0), with its targets.
+  std::unique_ptr<ViewpointPool> pool_;
+  std::vector<std::shared_ptr<const ImageRGB>> pool_targets_;
+  std::vector<std::shared_ptr<const std::vector<float>>> pool_logits_;
   double scene_extent_;
   BitDecoder* decoder_;
   Bits message_;

@@ -72,6 +72,8 @@ struct EmbedArgs {
   // how far a model travels from the input.
   double lr_scale = 0.2;
   int check_free_views = 4;
+  int hard_views = 0;
+  double hard_view_fraction = 0.5;
   int patience = 0;
   double stop_margin = 0;
   int check_views = 4;
@@ -152,6 +154,9 @@ void Validate(const EmbedArgs& a) {
   if (!(a.lr_scale > 0 && a.lr_scale <= 100)) {
     Fail("--lr_scale must be in (0, 100]");
   }
+  if (a.hard_views < 0) Fail("--hard_views must be >= 0");
+  if (!(a.hard_view_fraction >= 0 && a.hard_view_fraction <= 1))
+    Fail("--hard_view_fraction must be in [0, 1]");
   if (!(a.free_view_fraction >= 0 && a.free_view_fraction <= 1))
     Fail("--free_view_fraction must be in [0, 1]");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
@@ -332,6 +337,14 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("lr_scale", &a.lr_scale,
              "Multiply every optimiser rate by this (Adam moves each parameter "
              "by about its rate a step, whatever the loss weights)");
+  parser.Add("hard_views", &a.hard_views,
+             "> 0: a pool of this many free viewpoints that "
+             "--hard_view_fraction of the free-view iterations revisit, each "
+             "as often as it still falls short of reading every bit past "
+             "the margin (scored at each check)");
+  parser.Add("hard_view_fraction", &a.hard_view_fraction,
+             "Share of the free-view iterations drawn from the --hard_views "
+             "pool");
   parser.Add("check_free_views", &a.check_free_views,
              "Free viewpoints decoded at each check too (early stopping "
              "waits for them)");
@@ -388,6 +401,8 @@ int RunEmbed(int argc, char** argv) {
   options.full_frame_image_loss = a.full_frame_loss;
   options.free_view_fraction = a.free_view_fraction;
   options.free_view_neighbors = a.free_view_neighbors;
+  options.hard_views = a.hard_views;
+  options.hard_view_fraction = a.hard_view_fraction;
   options.decoder_jitter = ParseDecoderJitter(a.decoder_jitter);
   ParseJpegLayer(a.jpeg_layer, &options);
   options.margin = a.margin;
@@ -430,18 +445,11 @@ int RunEmbed(int argc, char** argv) {
   const WorkspaceViews& views = *in.views;
   const std::vector<size_t>& train_views = in.train_views;
   options.check_views = SpreadViews(train_views, a.check_views);
-  if (a.check_free_views > 0) {
-    // Between two training cameras, as extract --num_views samples them;
-    // a seed of its own, so they are not the free-view iterations' cameras.
-    std::mt19937_64 rng(uint64_t(a.seed) + 7919);
-    for (int k = 0; k < a.check_free_views; ++k) {
-      const size_t u = train_views[rng() % train_views.size()];
-      const size_t v = train_views[rng() % train_views.size()];
-      options.check_free_views.push_back(InterpolateCameras(
-          views.Camera(u), views.Camera(v),
-          std::uniform_real_distribution<double>(0, 1)(rng)));
-    }
-  }
+  // Between two training cameras, as extract --num_views samples them; a
+  // seed of its own, so they are not the free-view iterations' cameras.
+  options.check_free_views = SampleViewpointsBetween(
+      views, train_views, std::max(a.check_free_views, 0),
+      uint64_t(a.seed) + 7919);
   const double extent = in.workspace->SceneExtent();
   const RenderCamera first = views.Camera(train_views.front());
   std::printf(

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <random>
 
+#include "gaussian/checkpoint.h"
 #include "gaussian/util/error.h"
 #include "tests/common/embed_scene.h"
 #include "watermark/embedder.h"
@@ -97,7 +98,7 @@ TEST(EmbedderFreeViews, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   full.Run();
   Embedder first(o, s.views, s.train, s.model, 3.0, decoder.get(),
                  RandomBits(8, 1), MakeCpuRasterizer());
-  for (int i = 0; i < 3; ++i) first.Step();
+  for (int i = 0; i < 5; ++i) first.Step();
   first.SaveCheckpoint(path);
   Embedder resumed(o, s.views, s.train, s.model, 3.0, decoder.get(),
                    RandomBits(8, 1), MakeCpuRasterizer());
@@ -111,6 +112,62 @@ TEST(EmbedderFreeViews, ResumeGivesTheSameResultAsAnUninterruptedRun) {
                  RandomBits(8, 1), MakeCpuRasterizer());
   EXPECT_THROW(other.Resume(path), Error);
   std::remove(path.c_str());
+}
+
+TEST(EmbedderFreeViews, HardViewpointRunsResumeExactly) {
+  Scene s = MakeScene(3, 24, 20);
+  std::unique_ptr<FeatureDecoder> decoder = TinyFeatureDecoder(s, 8);
+  // Every iteration replays a pool view, and the pool is scored every 4
+  // iterations: iterations 6-8 draw from the deficits the checkpoint at 5
+  // carried.
+  EmbedOptions o = FreeViewOptions(12);
+  o.owner_reading = true;
+  o.margin = 1;
+  o.hard_views = 4;
+  o.hard_view_fraction = 1;
+  o.check_every = 4;
+  const std::string path = ::testing::TempDir() + "hard_view_resume.ckpt";
+  Embedder full(o, s.views, s.train, s.model, 3.0, decoder.get(),
+                RandomBits(8, 1), MakeCpuRasterizer());
+  full.Run();
+  Embedder first(o, s.views, s.train, s.model, 3.0, decoder.get(),
+                 RandomBits(8, 1), MakeCpuRasterizer());
+  for (int i = 0; i < 5; ++i) first.Step();
+  first.SaveCheckpoint(path);
+  Embedder resumed(o, s.views, s.train, s.model, 3.0, decoder.get(),
+                   RandomBits(8, 1), MakeCpuRasterizer());
+  resumed.Resume(path);
+  // The pool's deficits (measured at 4) come back with the rest.
+  const std::string again = path + ".again";
+  resumed.SaveCheckpoint(again);
+  EXPECT_EQ(ReadCheckpoint(again).rng_state, ReadCheckpoint(path).rng_state);
+  std::remove(again.c_str());
+  resumed.Run();
+  EXPECT_EQ(resumed.model().sh_dc, full.model().sh_dc);
+  EXPECT_EQ(resumed.model().means, full.model().means);
+  EXPECT_NE(full.model().sh_dc, s.model.sh_dc);
+  // A run with another pool does not take this checkpoint.
+  o.hard_views = 5;
+  Embedder other(o, s.views, s.train, s.model, 3.0, decoder.get(),
+                 RandomBits(8, 1), MakeCpuRasterizer());
+  EXPECT_THROW(other.Resume(path), Error);
+  std::remove(path.c_str());
+}
+
+TEST(EmbedderFreeViews, HardViewsNeedFreeViewIterations) {
+  Scene s = MakeScene(2, 16, 12);
+  std::unique_ptr<FeatureDecoder> decoder = TinyFeatureDecoder(s, 8);
+  EmbedOptions o = FreeViewOptions(2);
+  o.hard_views = 4;
+  o.free_view_fraction = 0;
+  EXPECT_THROW(Embedder(o, s.views, s.train, s.model, 3.0, decoder.get(),
+                        RandomBits(8, 1), MakeCpuRasterizer()),
+               Error);
+  o.free_view_fraction = 0.5;
+  o.hard_view_fraction = 1.5;
+  EXPECT_THROW(Embedder(o, s.views, s.train, s.model, 3.0, decoder.get(),
+                        RandomBits(8, 1), MakeCpuRasterizer()),
+               Error);
 }
 
 TEST(EmbedderFreeViews, RefusesAFractionOutsideZeroOne) {
