@@ -155,6 +155,11 @@ void Validate(const EmbedArgs& a) {
     Fail("--lr_scale must be in (0, 100]");
   }
   if (a.hard_views < 0) Fail("--hard_views must be >= 0");
+  if (a.hard_views > 0 && a.free_view_fraction <= 0) {
+    Fail(
+        "--hard_views replays free-view iterations: give "
+        "--free_view_fraction > 0");
+  }
   if (!(a.hard_view_fraction >= 0 && a.hard_view_fraction <= 1))
     Fail("--hard_view_fraction must be in [0, 1]");
   if (!(a.free_view_fraction >= 0 && a.free_view_fraction <= 1))

@@ -126,6 +126,16 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
       RunCommand(base + " --message hex:a5c3 --densify maybe --output_path " +
                  bad_out),
       "--densify: on, off or auto");
+  ExpectOneLineError(
+      RunCommand(base + " --message hex:a5c3 --hard_views -2 --output_path " +
+                 bad_out),
+      "--hard_views must be >= 0");
+  ExpectOneLineError(
+      RunCommand(base +
+                 " --message hex:a5c3 --hard_views 4 --free_view_fraction 0 "
+                 "--output_path " +
+                 bad_out),
+      "--hard_views replays free-view iterations");
   ExpectOneLineError(RunCommand(WatergsBin() + " extract --input_path " + wm +
                                 " --workspace_path " + ws + " --decoder " +
                                 decoder + " --message bits:00110011001100110"),
