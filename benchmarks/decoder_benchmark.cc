@@ -34,21 +34,14 @@
 #include <vector>
 
 #include "benchmarks/benchmark_util.h"
+#include "gaussian/backend.h"
 #include "gaussian/device.h"
 #include "gaussian/util/error.h"
+#include "watermark/backend.h"
 #include "watermark/decoder.h"
 #include "watermark/decoder_training.h"
 #include "watermark/feature_decoder.h"
 #include "watermark/network_file.h"
-
-#ifdef WATERGS_WITH_CUDA
-#include <cuda_runtime.h>
-
-#include "gaussian/cuda/cuda_device.h"
-#include "watermark/cuda/cuda_decoder_training.h"
-#include "watermark/cuda/cuda_feature_decoder.h"
-#include "watermark/cuda/cuda_hidden.h"
-#endif
 
 namespace {
 
@@ -205,11 +198,12 @@ void HostWorkPerStep(int repeats) {
   std::printf("\n");
 }
 
-#ifdef WATERGS_WITH_CUDA
-// CudaDecoder forward (Logits) and forward + input gradient at 128 and 256.
+// The GPU decoder's forward (Logits) and forward + input gradient at 128 and
+// 256.
 void CudaDecoderTimings(watergs::HiddenModel& model, bool tf32, int repeats) {
   using namespace watergs;
-  CudaDecoder decoder(model, tf32);
+  std::unique_ptr<BitDecoder> gpu = MakeGpuHiddenDecoder(model, tf32);
+  BitDecoder& decoder = *gpu;
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> unit(0.f, 1.f);
   for (int size : {128, 256}) {
@@ -236,7 +230,7 @@ void CudaDecoderTimings(watergs::HiddenModel& model, bool tf32, int repeats) {
   }
 }
 
-// CudaDecoderTrainer steps (48 bits, 64 channels) at (crop, batch) under
+// GPU decoder training steps (48 bits, 64 channels) at (crop, batch) under
 // `kind`; GFLOP/s counts forward, backward-data and backward-filter of both
 // networks as 3 forward passes.
 void CudaTrainerTimings(int crop, int batch, watergs::NoiseKind kind, bool tf32,
@@ -245,15 +239,16 @@ void CudaTrainerTimings(int crop, int batch, watergs::NoiseKind kind, bool tf32,
   HiddenConfig config;
   HiddenModel model(config, true, 2);
   NetworkAdam adam(model.AllParameters(), 1e-3f);
-  CudaDecoderTrainer trainer(model, adam, tf32);
+  std::unique_ptr<DeviceDecoderTrainer> trainer =
+      MakeGpuDecoderTrainer(model, adam, tf32);
   ImageNoise noise;
   std::mt19937 rng(4);
   Tensor cover;
   std::vector<float> targets;
   RandomBatch(batch, crop, config.num_bits, &rng, &cover, &targets);
   const double seconds = MedianSeconds(repeats, [&] {
-    trainer.Step(noise, kind, cover, targets, 0.7f, &rng);
-    cudaDeviceSynchronize();  // the Adam kernels are asynchronous
+    trainer->Step(noise, kind, cover, targets, 0.7f, &rng);
+    SynchronizeGpu();  // the Adam kernels are asynchronous
   });
   const double flops =
       6.0 *
@@ -265,20 +260,17 @@ void CudaTrainerTimings(int crop, int batch, watergs::NoiseKind kind, bool tf32,
       crop, batch, NoiseName(kind), tf32 ? "TF32" : "float32", 1e3 * seconds,
       1.0 / seconds, batch / seconds, flops / seconds * 1e-9);
 }
-#endif
 
 // GPU timings of a HiDDeN decoder (the caller checked the GPU); the host
 // part first.
-int RunCuda([[maybe_unused]] const std::string& weights, int repeats) {
+int RunCuda(const std::string& weights, int repeats) {
   using namespace watergs;
   HostWorkPerStep(repeats);
-#ifdef WATERGS_WITH_CUDA
   std::unique_ptr<HiddenModel> model = HiddenOf(weights);
   std::printf(
       "decoder_benchmark --device cuda: %s, hidden-model, %d bits, %d "
       "channels, %s\n",
-      CudaDeviceDescription().c_str(), model->config.num_bits,
-      model->config.channels,
+      GpuDescription().c_str(), model->config.num_bits, model->config.channels,
       weights.empty() ? "random weights" : weights.c_str());
   for (bool tf32 : {false, true}) {
     CudaDecoderTimings(*model, tf32, repeats);
@@ -286,7 +278,6 @@ int RunCuda([[maybe_unused]] const std::string& weights, int repeats) {
     CudaTrainerTimings(256, 16, NoiseKind::kIdentity, tf32, repeats);
     CudaTrainerTimings(256, 16, NoiseKind::kJpeg, tf32, repeats);
   }
-#endif
   return 0;
 }
 
@@ -354,21 +345,17 @@ int RunFeatureCpu(const std::string& weights, int repeats) {
   return 0;
 }
 
-int RunFeatureCuda([[maybe_unused]] const std::string& weights,
-                   [[maybe_unused]] int repeats) {
-#ifdef WATERGS_WITH_CUDA
+int RunFeatureCuda(const std::string& weights, int repeats) {
   using namespace watergs;
   std::unique_ptr<FeatureNet> net = FeatureNetOf(weights);
-  PrintFeatureHeader(*net, weights,
-                     " --device cuda: " + CudaDeviceDescription());
+  PrintFeatureHeader(*net, weights, " --device cuda: " + GpuDescription());
   for (bool tf32 : {false, true}) {
-    CudaFeatureDecoder decoder(*net, tf32);
+    std::unique_ptr<BitDecoder> decoder = MakeGpuFeatureDecoder(*net, tf32);
     FeatureTimings(
-        decoder, net->MacsPerPixel(),
+        *decoder, net->MacsPerPixel(),
         tf32 ? "cuda feature decoder (TF32)" : "cuda feature decoder (float32)",
         repeats);
   }
-#endif
   return 0;
 }
 

@@ -36,6 +36,10 @@ struct Config {
   int crop_size;
   bool full_frame_loss;
   bool densify;
+  // The rest of `watergs embed`'s defaults (issue 36): the owner's reading
+  // with margin 1, MSE 50 towards the input's renders, a fifth of the rates,
+  // half the iterations from free viewpoints.
+  bool embed_defaults = false;
 };
 
 double Median(std::vector<double> v) {
@@ -66,6 +70,15 @@ double RunConfig(const Bench& b, const Config& c) {
   o.crop_size = c.crop_size;
   o.full_frame_image_loss = c.full_frame_loss;
   o.densify = c.densify;
+  if (c.embed_defaults) {
+    o.owner_reading = true;
+    o.margin = 1;
+    o.fidelity_to_input = true;
+    o.mse_weight = 50;
+    o.gamma = 0.03;
+    o.free_view_fraction = 0.5;
+    ScaleRates(0.2, &o.adam);
+  }
   o.seed = 1;
   Embedder embedder(o, *b.views, b.train, *b.model, b.extent, b.decoder,
                     b.message, MakeRasterizer(b.device));
@@ -141,6 +154,8 @@ int RunSynthetic(int argc, char** argv) {
        false, false},
       {"4 layers, crop 128, ADC", "identity,gn:0.01,dropout:0.1,crop:0.1", 128,
        false, true},
+      {"4 layers, full frame, embed's defaults",
+       "identity,gn:0.01,dropout:0.1,crop:0.1", 0, false, false, true},
   };
   for (const Config& c : configs) {
     const double seconds = RunConfig(b, c);
@@ -176,6 +191,8 @@ int RunWorkspace(int argc, char** argv) {
        false, true},
       {"no layers, full frame, decoder crop", "none", 128, true, false},
       {"no layers, full frame, decoder frame", "none", 0, false, false},
+      {"4 layers, full frame, embed's defaults",
+       "identity,gn:0.01,dropout:0.1,crop:0.1", 0, false, false, true},
   };
   std::printf(
       "%zu Gaussians, %d views %dx%d, %d iterations per config, rasterizer "

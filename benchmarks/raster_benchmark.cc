@@ -16,17 +16,20 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
+#include "benchmarks/resident_raster.h"
 #include "benchmarks/synthetic_scene.h"
+#include "gaussian/backend.h"
 #include "gaussian/cpu_rasterizer.h"
 #include "gaussian/device.h"
-#ifdef WATERGS_WITH_CUDA
-#include "gaussian/cuda/cuda_device.h"
-#endif
+#include "gaussian/formats/ply_io.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {
@@ -41,7 +44,27 @@ struct BenchOptions {
   int scenes = 0;
   // Rasterizer under test.
   Device device = Device::kCpu;
+  // With --scenes 1000: write the 1M scene (Inria PLY) and its camera
+  // (JSON) into this folder, for another rasterizer to time the same work
+  // (scripts/gsplat_timing.py).
+  std::string write_scene;
 };
+
+// The camera as intrinsics and a row-major 4x4 world-to-camera matrix.
+void WriteCameraJson(const std::string& path, const RenderCamera& cam) {
+  nlohmann::json j;
+  j["width"] = cam.width, j["height"] = cam.height;
+  j["fx"] = cam.fx, j["fy"] = cam.fy, j["cx"] = cam.cx, j["cy"] = cam.cy;
+  std::vector<double> viewmat;
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) {
+      viewmat.push_back(r == 3 ? (c == 3 ? 1.0 : 0.0)
+                               : (c == 3 ? cam.t(r) : cam.R(r, c)));
+    }
+  }
+  j["viewmat"] = viewmat;
+  AtomicWriteFile(path, j.dump(1) + "\n");
+}
 
 double Seconds(std::chrono::steady_clock::time_point a) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - a)
@@ -92,9 +115,7 @@ double SplatPixels(const CpuRenderContext& ctx) {
 double Run(const char* name, const GaussianModel& model,
            const RenderCamera& cam, const RenderOptions& options, int repeats,
            Device device) {
-#ifdef WATERGS_WITH_CUDA
-  if (device == Device::kCuda) ResetCudaMemoryPeak();
-#endif
+  if (device == Device::kCuda) ResetGpuMemoryPeak();
   auto rasterizer = MakeRasterizer(device);
   ImageRGB image;
   std::unique_ptr<RenderContext> context;
@@ -114,18 +135,13 @@ double Run(const char* name, const GaussianModel& model,
     auto t1 = std::chrono::steady_clock::now();
     rasterizer->Backward(model, *context, grad, &grads);
     const double b = Seconds(t1);
-#ifdef WATERGS_WITH_CUDA
-    if (device == Device::kCuda) SampleCudaMemory();
-#endif
+    if (device == Device::kCuda) SampleGpuMemory();
     fwd.push_back(f), bwd.push_back(b), both.push_back(f + b);
     cpu.push_back(CpuSeconds() - c0);
   }
   const auto* ctx = dynamic_cast<const CpuRenderContext*>(context.get());
   if (!ctx) {
-    double device_bytes = 0;
-#ifdef WATERGS_WITH_CUDA
-    device_bytes = double(CudaMemoryPeakBytes());
-#endif
+    const double device_bytes = double(GpuMemoryPeakBytes());
     std::printf(
         "%-26s N=%zu on %s\n"
         "    wall: forward %.2f ms, backward %.2f ms, fwd+bwd %.2f ms "
@@ -134,6 +150,17 @@ double Run(const char* name, const GaussianModel& model,
         name, model.size(), DeviceName(device).c_str(), 1e3 * Median(fwd),
         1e3 * Median(bwd), 1e3 * Median(both), 1.0 / Median(both),
         device_bytes / std::max<size_t>(1, model.size()));
+    // The same passes with the model, image and gradients kept on the
+    // device: the figure a device-resident trainer pays (docs/cuda.md).
+    const bench::ResidentRasterTiming resident =
+        bench::TimeResidentRaster(model, cam, options, repeats);
+    if (resident.ok) {
+      std::printf(
+          "    device-resident: forward %.2f ms, backward %.2f ms, fwd+bwd "
+          "%.2f ms (%.0f/s; CUDA events)\n",
+          resident.forward_ms, resident.backward_ms, resident.both_ms,
+          1e3 / resident.both_ms);
+    }
     return Median(both);
   }
   const double pairs = SplatPixels(*ctx);
@@ -168,6 +195,8 @@ BenchOptions Parse(int argc, char** argv) {
       o.sh_degree = value;
     else if (flag == "--scenes")
       o.scenes = value;
+    else if (flag == "--write_scene")
+      o.write_scene = argv[i + 1];
     else {
       std::fprintf(stderr, "raster_benchmark: unknown option %s\n", argv[i]);
       std::exit(2);
@@ -199,6 +228,13 @@ int main(int argc, char** argv) {
     const RenderCamera hd = BenchCamera(4);
     const GaussianModel huge =
         SyntheticScene(hd, 1000000, opt.sh_degree, true, 3);
+    if (!opt.write_scene.empty()) {
+      std::filesystem::create_directories(opt.write_scene);
+      WritePly(opt.write_scene + "/scene_1m.ply", huge);
+      WriteCameraJson(opt.write_scene + "/camera_1m.json", hd);
+      std::printf("wrote %s/scene_1m.ply and camera_1m.json\n",
+                  opt.write_scene.c_str());
+    }
     Run("trained-like 1M 1920x1080", huge, hd, full,
         std::max(3, opt.repeats / 3), opt.device);
     RenderOptions crop;

@@ -1,16 +1,11 @@
-// Device selection; the CUDA half lives in cuda/cuda_device.cc and is only
-// compiled with the CUDA backend.
+// Device selection; what the backend offers comes through gaussian/backend.h.
 #include "gaussian/device.h"
 
 #include <iostream>
 #include <mutex>
 
+#include "gaussian/backend.h"
 #include "gaussian/util/error.h"
-
-#ifdef WATERGS_WITH_CUDA
-#include "gaussian/cuda/cuda_device.h"
-#include "gaussian/cuda/cuda_rasterizer.h"
-#endif
 
 namespace watergs {
 
@@ -18,18 +13,7 @@ std::string DeviceName(Device device) {
   return device == Device::kCuda ? "cuda" : "cpu";
 }
 
-bool CudaAvailable(std::string* why) {
-#ifdef WATERGS_WITH_CUDA
-  return CudaDeviceVisible(why);
-#else
-  if (why) {
-    *why =
-        "this watergs was built without the CUDA backend (no nvcc at build "
-        "time, or -DWATERGS_CUDA=OFF)";
-  }
-  return false;
-#endif
-}
+bool CudaAvailable(std::string* why) { return GpuBackendAvailable(why); }
 
 Device ResolveDevice(const std::string& text, std::ostream* note, bool* noted) {
   if (text == "cpu") return Device::kCpu;
@@ -55,11 +39,7 @@ Device ResolveDevice(const std::string& text) {
 
 std::unique_ptr<Rasterizer> MakeRasterizer(Device device) {
   if (device == Device::kCpu) return MakeCpuRasterizer();
-#ifdef WATERGS_WITH_CUDA
-  return MakeCudaRasterizer();
-#else
-  Fail("--device cuda: built without the CUDA backend");
-#endif
+  return MakeGpuRasterizer();
 }
 
 }  // namespace watergs

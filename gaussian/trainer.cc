@@ -10,15 +10,11 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "gaussian/backend.h"
 #include "gaussian/projection.h"
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
 #include "gaussian/util/progress.h"
-
-#ifdef WATERGS_WITH_CUDA
-#include "gaussian/cuda/cuda_rasterizer_device.h"
-#include "gaussian/cuda/cuda_training_step.h"
-#endif
 
 namespace watergs {
 namespace {
@@ -120,19 +116,11 @@ Trainer::Trainer(const TrainerOptions& options, const TrainingViews& views,
   // Factored SH gradients are exact and save 168 bytes per Gaussian; the
   // 8-bit compact moments read dense ones.
   grads_.compact_sh = !options_.adam.compact_moments;
-#ifdef WATERGS_WITH_CUDA
-  // Compact and bfloat16 moments have no CUDA Adam: those runs keep the
-  // host step, with the CUDA rasterizer behind the host interface (same
-  // results, but the model and gradients cross the bus every iteration).
-  auto* cuda = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
-  if (cuda && !options_.adam.compact_moments && !options_.adam.half_moments) {
-    UseDeviceStep([&](GaussianModel* host_model, Adam* host_adam) {
-      return std::make_unique<CudaTrainingStep>(
-          cuda, options_.adam, scene_extent_, options_.lambda_dssim, host_model,
-          host_adam);
-    });
+  // On a backend that keeps the model on the device, its step runs there.
+  if (DeviceTrainingStepFactory make = DeviceTrainingStepFor(
+          *rasterizer_, options_.adam, scene_extent_, options_.lambda_dssim)) {
+    UseDeviceStep(make);
   }
-#endif
 }
 
 Trainer::~Trainer() = default;

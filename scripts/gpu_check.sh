@@ -5,7 +5,7 @@
 # of a build here:
 #   bash scripts/gpu_check.sh [--bundle FILE] [--out DIR] [--deadline S]
 #                             [STAGE ...]
-# FILE defaults to .gpu/bundle.tar.xz, DIR to gpu_out, S (seconds for all
+# FILE defaults to .gpu/bundle.tar.xz (--gsplat: .gpu/gsplat.tar.xz), DIR to gpu_out, S (seconds for all
 # stages together, each stage also capped) to 540. Stages, in this order
 # when none is named:
 #   parity    the CUDA parity tests of every module (*Cuda*:*CUDA*)
@@ -17,6 +17,10 @@
 #   sanitize  compute-sanitizer memcheck, racecheck and synccheck on the
 #             tests of the rasterizer, the device-resident embedding step
 #             and the feature decoder twin
+#   gsplat    (named only) watergs' 1M-Gaussian 1920x1080 raster figures,
+#             then gsplat's on the same scene and card (scripts/gsplat_timing.py,
+#             gsplat from --gsplat FILE, made by scripts/gsplat_bundle.sh; the
+#             device's PyTorch, or a line saying there is none)
 #   profile   (named only) Nsight Systems' kernel summary of 300 demo
 #             embedding iterations (after the demo stage), and Nsight
 #             Compute's per-kernel summary of the 1M-Gaussian 1920x1080
@@ -26,26 +30,28 @@
 # bundle that cannot be placed.
 set -uo pipefail
 die() { echo "gpu_check: $*" >&2; exit 2; }
-usage="gpu_check.sh [--bundle FILE] [--out DIR] [--deadline S] [parity] [demo] [bench] [sanitize] [profile]"
-bundle=.gpu/bundle.tar.xz out=gpu_out deadline=540 stages=()
+usage="gpu_check.sh [--bundle FILE] [--gsplat FILE] [--out DIR] [--deadline S] [parity] [demo] [bench] [sanitize] [gsplat] [profile]"
+bundle=.gpu/bundle.tar.xz gsplat_bundle=.gpu/gsplat.tar.xz out=gpu_out deadline=540 stages=()
 while [ $# -gt 0 ]; do
   case "$1" in
-    --bundle|--out|--deadline)
+    --bundle|--gsplat|--out|--deadline)
       [ $# -ge 2 ] || die "$1 needs a value (usage: $usage)"
       case "$1" in
         --bundle) bundle="$2" ;;
+        --gsplat) gsplat_bundle="$(cd "$(dirname "$2")" 2>/dev/null && pwd -P)/$(basename "$2")" ;;
         --out) out="$2" ;;
         --deadline) [[ "$2" =~ ^[1-9][0-9]*$ ]] || die "--deadline: expected seconds > 0, got '$2'"
           deadline="$2" ;;
       esac
       shift 2 ;;
     -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
-    parity|demo|bench|sanitize|profile) stages+=("$1"); shift ;;
+    parity|demo|bench|sanitize|gsplat|profile) stages+=("$1"); shift ;;
     *) die "unknown argument '$1' (usage: $usage)" ;;
   esac
 done
 [ ${#stages[@]} -gt 0 ] || stages=(parity demo bench sanitize)
 [ -f "$bundle" ] || die "no bundle '$bundle' (make it here with scripts/gpu_bundle.sh)"
+case "$gsplat_bundle" in /*) ;; *) gsplat_bundle="$(pwd -P)/$gsplat_bundle" ;; esac
 [ "${GPU_CHECK_PARSE_ONLY:-0}" = 1 ] && { echo "stages: ${stages[*]}; bundle $bundle; out $out; deadline $deadline"; exit 0; }
 
 t0=$SECONDS
@@ -94,13 +100,18 @@ stage_demo() {
   { step 150 train "$W" train --device cuda --workspace_path $sc --output_path "$o/train" --downscale 2 \
       --iterations 2000 --densify_until_iter 1000 --eval --test_iterations 2000 || rc=1
     step 150 embed "$W" embed --device cuda --input_path "$o/train/point_cloud.ply" --workspace_path $sc \
-      --downscale 2 --decoder $dec --message text:WGS-26 --output_path "$o/wm.ply" --iterations 1500 \
-      --crop_size 0 --free_view_fraction 0.5 --gamma 0.03 --densify off --check_every 250 --check_views 4 --eval || rc=1
+      --downscale 2 --decoder $dec --message text:WGS-26 --output_path "$o/wm.ply" --eval || rc=1
     step 40 "extract point_cloud.ply" "$W" extract --device cuda --input_path "$o/train/point_cloud.ply" \
       --workspace_path $sc --downscale 2 --decoder $dec --message text:WGS-26 || rc=1
     # Read blind and as the owner (embed's default reading since issue 36).
     step 40 "extract wm.ply" "$W" extract --device cuda --input_path "$o/wm.ply" --workspace_path $sc \
       --downscale 2 --decoder $dec --message text:WGS-26 --raw_path "$o/train/point_cloud.ply" || rc=1
+    # Held-out views and 48 free viewpoints apart (issue 36's figures).
+    step 40 "extract wm.ply held-out" "$W" extract --device cuda --input_path "$o/wm.ply" --workspace_path $sc \
+      --downscale 2 --decoder $dec --message text:WGS-26 --raw_path "$o/train/point_cloud.ply" --split test || rc=1
+    step 40 "extract wm.ply 48 free" "$W" extract --device cuda --input_path "$o/wm.ply" --workspace_path $sc \
+      --downscale 2 --decoder $dec --message text:WGS-26 --raw_path "$o/train/point_cloud.ply" \
+      --num_views 48 --seed 1 || rc=1
   } > "$tmp/demo_raw.txt" 2>&1
   # Progress bars redraw with \r: keep the lines that are not bars.
   tr '\r' '\n' < "$tmp/demo_raw.txt" | grep -v -E '^(train|embed) \[' > "$out/demo.txt"
@@ -116,7 +127,7 @@ stage_bench() {
     step 90 decoder_benchmark "$B/decoder_benchmark" --device cuda --repeats 5 \
       watermark/models/hidden_48.bin watermark/models/decoder_48.bin || rc=1
   } > "$out/bench.txt" 2>&1
-  grep -E "^== |1M|it/s|10k|decoder" "$out/bench.txt" | head -40
+  grep -E "^== |1M|resident|it/s|10k|decoder" "$out/bench.txt" | head -40
   return $rc
 }
 
@@ -132,6 +143,28 @@ stage_sanitize() {
       "$T/watergs_watermark_test" --gtest_filter='EmbedderCuda.DeviceResident*:CudaFeatureDecoder.*' || rc=1
   done > "$out/sanitize.txt" 2>&1
   grep -E "^== |ERROR SUMMARY" "$out/sanitize.txt"
+  return $rc
+}
+
+stage_gsplat() {
+  local rc=0 g="$tmp/gsplat" scene="$tmp/scene"
+  { echo "python3: $(command -v python3 || echo none)"
+    python3 -c 'import torch; print("torch", torch.__version__, "CUDA", torch.version.cuda, "available", torch.cuda.is_available())' 2>&1 | tail -1
+    step 150 "raster_benchmark 1M (watergs; writes the scene)" "$B/raster_benchmark" --device cuda \
+      --scenes 1000 --repeats 9 --write_scene "$scene" || rc=1
+    if [ ! -f "$gsplat_bundle" ]; then
+      echo "gsplat: no $gsplat_bundle (make it here: bash scripts/gsplat_bundle.sh --source GSPLAT_GIT)"; rc=1
+    elif ! python3 -c 'import sys, torch; sys.exit(0 if torch.cuda.is_available() else 1)' 2>/dev/null; then
+      echo "gsplat: no PyTorch with CUDA on this machine; gsplat's CUDA extension builds against it (not measured)"
+    else
+      mkdir -p "$g" && tar -xJf "$gsplat_bundle" -C "$g"
+      # gsplat JIT-builds its extension on first import (minutes; 16 jobs).
+      step 420 "gsplat build + timing" env PYTHONPATH="$g/gsplat:$g/deps/usr/lib/python3/dist-packages" \
+        PATH="$g/deps/usr/bin:$PATH" TORCH_EXTENSIONS_DIR="$tmp/torch_ext" MAX_JOBS=16 \
+        python3 scripts/gsplat_timing.py "$scene" --repeats 9 || rc=1
+    fi
+  } > "$out/gsplat.txt" 2>&1
+  grep -E "^== |^gsplat|^torch|resident|1M" "$out/gsplat.txt" | head -20
   return $rc
 }
 

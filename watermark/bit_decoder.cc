@@ -1,20 +1,16 @@
 // LoadBitDecoder: by the weights file's kind, the random-feature decoder or
-// the HiDDeN decoder, on the CPU, or with the CUDA backend their CUDA twins
-// (CudaFeatureDecoder, CudaDecoder) read from the same file.
+// the HiDDeN decoder, on the CPU, or on the GPU backend's twins
+// (watermark/backend.h) read from the same file.
 #include "watermark/bit_decoder.h"
 
 #include <cstring>
 
 #include "gaussian/util/error.h"
+#include "watermark/backend.h"
 #include "watermark/decoder.h"
 #include "watermark/feature_decoder.h"
 #include "watermark/network_file.h"
 #include "watermark/network_image.h"
-
-#ifdef WATERGS_WITH_CUDA
-#include "watermark/cuda/cuda_feature_decoder.h"
-#include "watermark/cuda/cuda_hidden.h"
-#endif
 
 namespace watergs {
 
@@ -80,16 +76,7 @@ std::unique_ptr<BitDecoder> LoadBitDecoder(const std::string& path,
   if (!CudaAvailable(&why)) {
     FailAt(path, "cannot load the decoder on the GPU: " + why);
   }
-#ifdef WATERGS_WITH_CUDA
-  // No TF32: the GPU decoder then reads what the CPU one does (parity tests).
-  if (feature) {
-    return CudaFeatureDecoder::Load(path, expected_bits, false);
-  }
-  return std::make_unique<CudaDecoder>(
-      CudaDecoder::Load(path, expected_bits, false));
-#else
-  FailAt(path, "cannot load the decoder on the GPU: built without CUDA");
-#endif
+  return LoadGpuBitDecoder(path, expected_bits, feature);
 }
 
 }  // namespace watergs

@@ -9,14 +9,11 @@
 #include <sstream>
 #include <string>
 
+#include "gaussian/backend.h"
 #include "gaussian/util/error.h"
 #include "gaussian/util/progress.h"
+#include "watermark/backend.h"
 #include "watermark/image_reading.h"
-
-#ifdef WATERGS_WITH_CUDA
-#include "gaussian/cuda/cuda_device.h"
-#include "watermark/cuda/cuda_decoder_training.h"
-#endif
 
 namespace watergs {
 namespace {
@@ -103,37 +100,28 @@ class StepRunner {
              const DecoderTrainingOptions& options)
       : model_(model), adam_(adam) {
     if (options.device != Device::kCuda) return;
-#ifdef WATERGS_WITH_CUDA
     // Built after any resume: the device starts from the loaded state.
-    gpu_ =
-        std::make_unique<CudaDecoderTrainer>(model, adam, options.allow_tf32);
-    std::cerr << "train_decoder: steps on " << CudaDeviceDescription()
+    gpu_ = MakeGpuDecoderTrainer(model, adam, options.allow_tf32);
+    std::cerr << "train_decoder: steps on " << GpuDescription()
               << (options.allow_tf32 ? " (TF32 allowed)" : " (float32)")
               << "\n";
-#else
-    Fail("train_decoder --device cuda: built without the CUDA backend");
-#endif
   }
 
   // cover [N,3,H,W] in [-1,1], targets N*L bits: one step (see TrainStep).
   StepResult Step(NoiseKind kind, const Tensor& cover,
                   const std::vector<float>& targets, float image_weight,
                   std::mt19937* rng) {
-#ifdef WATERGS_WITH_CUDA
     if (gpu_) {
       device_ahead_ = true;
       return gpu_->Step(noise_, kind, cover, targets, image_weight, rng);
     }
-#endif
     return TrainStep(model_, adam_, noise_, kind, cover, targets, image_weight,
                      rng, &buffers_);
   }
 
   // Makes the CPU model and optimiser hold the latest state.
   void SyncToHost() {
-#ifdef WATERGS_WITH_CUDA
     if (gpu_ && device_ahead_) gpu_->CopyToHost(&model_, &adam_);
-#endif
     device_ahead_ = false;
   }
 
@@ -148,10 +136,8 @@ class StepRunner {
   StepBuffers buffers_;
   // Whether the device has steps the CPU copy lacks.
   bool device_ahead_ = false;
-#ifdef WATERGS_WITH_CUDA
   // Device state (null on the CPU).
-  std::unique_ptr<CudaDecoderTrainer> gpu_;
-#endif
+  std::unique_ptr<DeviceDecoderTrainer> gpu_;
 };
 
 // Fails with one line unless options.device can run (CUDA: backend built

@@ -13,14 +13,9 @@
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
 #include "gaussian/util/progress.h"
+#include "watermark/backend.h"
 #include "watermark/extractor.h"
 #include "watermark/texture_masking.h"
-
-#ifdef WATERGS_WITH_CUDA
-#include "gaussian/cuda/cuda_rasterizer_device.h"
-#include "watermark/cuda/cuda_embedding_step.h"
-#include "watermark/cuda/device_patch_decoder.h"
-#endif
 
 namespace watergs {
 namespace {
@@ -201,35 +196,13 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   strategy_->Init(model_);
   origin_.resize(model_.size());
   for (size_t i = 0; i < origin_.size(); ++i) origin_[i] = int64_t(i);
-#ifdef WATERGS_WITH_CUDA
-  // With a CUDA rasterizer and decoder everything per Gaussian stays on the
-  // GPU; the compact and bfloat16 moments have no CUDA Adam and keep the
-  // host step (the rasterizer and decoder still run on the GPU).
-  auto* cuda_rasterizer = dynamic_cast<CudaRasterizer*>(rasterizer_.get());
-  // Either CUDA decoder (HiDDeN or random-feature) reads the render in place.
-  auto* cuda_decoder = dynamic_cast<DevicePatchDecoder*>(decoder_);
-  // Decoder jitter and the compact moments have no device twin: those runs
-  // keep the host step (renders and decoder on the GPU).
-  if (cuda_rasterizer && cuda_decoder) {
-    if (options_.adam.compact_moments || options_.adam.half_moments) {
-      host_step_reason_ = "8-bit or bfloat16 moments have no CUDA Adam";
-    } else if (options_.decoder_jitter.enabled()) {
-      host_step_reason_ = "decoder jitter runs on the host";
-    } else if (options_.jpeg_quality > 0 && options_.jpeg_fraction > 0) {
-      host_step_reason_ = "the JPEG layer runs on the host";
-    } else if (options_.masking > 0) {
-      host_step_reason_ = "texture masking runs on the host";
-    }
+  // On a backend that keeps the model on the device, its step runs there
+  // (host_step_reason_ says which option kept it on the host).
+  if (DeviceEmbeddingStepFactory make =
+          DeviceEmbeddingStepFor(*rasterizer_, *decoder_, options_,
+                                 scene_extent_, targets_, &host_step_reason_)) {
+    UseDeviceStep(make);
   }
-  if (cuda_rasterizer && cuda_decoder && host_step_reason_.empty()) {
-    UseDeviceStep([&](GaussianModel* host_model, Adam* host_adam) {
-      return std::make_unique<CudaEmbeddingStep>(
-          cuda_rasterizer, cuda_decoder, options_.adam, scene_extent_,
-          options_.beta, options_.gamma, options_.margin, targets_, host_model,
-          host_adam, options_.mse_weight);
-    });
-  }
-#endif
 }
 
 Embedder::~Embedder() = default;

@@ -37,7 +37,14 @@ parsed=$(GPU_CHECK_PARSE_ONLY=1 bash "$check" --bundle fake.tar.xz demo profile)
 [ "$parsed" = "stages: demo profile; bundle fake.tar.xz; out gpu_out; deadline 540" ] || fail "profile: $parsed"
 parsed=$(GPU_CHECK_PARSE_ONLY=1 bash "$check" --bundle fake.tar.xz)
 [ "$parsed" = "stages: parity demo bench sanitize; bundle fake.tar.xz; out gpu_out; deadline 540" ] || fail "default stages: $parsed"
+parsed=$(GPU_CHECK_PARSE_ONLY=1 bash "$check" --bundle fake.tar.xz gsplat)
+[ "$parsed" = "stages: gsplat; bundle fake.tar.xz; out gpu_out; deadline 540" ] || fail "gsplat: $parsed"
 bash "$check" --help | grep -q "compute-sanitizer" || fail "gpu_check.sh --help"
+gsplat_sh="$root/scripts/gsplat_bundle.sh"
+bash -n "$gsplat_sh" || fail "gsplat_bundle.sh syntax"
+expect_error 2 "--source: a gsplat git checkout" bash "$gsplat_sh"
+expect_error 2 "unknown argument '--frobnicate'" bash "$gsplat_sh" --frobnicate
+expect_error 2 "no revision" bash "$gsplat_sh" --source "$tmp"
 expect_error 2 "unknown argument '--frobnicate'" bash "$bundle_sh" --frobnicate
 (cd "$root" && expect_error 2 "no build folder" bash "$bundle_sh" --build "$tmp/none")
 
@@ -47,6 +54,7 @@ mkdir -p "$b/plugin" "$b/tests" "$b/benchmarks"
 cp /bin/true "$b/plugin/watergs"
 for m in gaussian distortion watermark plugin; do cp /bin/true "$b/tests/watergs_${m}_test"; done
 cp /bin/true "$b/benchmarks/decoder_benchmark"
+cp /bin/true "$b/benchmarks/raster_benchmark"
 (cd "$root" && bash "$bundle_sh" --build "$b" --out "$tmp/out") > "$tmp/bundle.log" 2>&1 ||
   fail "gpu_bundle.sh: $(cat "$tmp/bundle.log")"
 tar -tJf "$tmp/out/bundle.tar.xz" > "$tmp/list" || fail "bundle does not unpack"
@@ -74,6 +82,18 @@ for m in gaussian distortion watermark plugin; do
   grep -q "^== $m parity: exit 0" "$tmp/log/parity.txt" || fail "no $m parity run: $(cat "$tmp/log/parity.txt")"
 done
 [ -f "$tmp/log/env.txt" ] || fail "no env.txt"
+
+# The gsplat stage runs watergs' raster benchmark, then gsplat's timing only
+# where PyTorch with CUDA is there; elsewhere it says so and does not fail.
+: > "$tmp/gsplat.tar.xz"
+if ! python3 -c 'import sys, torch; sys.exit(0 if torch.cuda.is_available() else 1)' 2> /dev/null; then
+  (cd "$root" && bash "$check" --bundle "$tmp/out/bundle.tar.xz" --gsplat "$tmp/gsplat.tar.xz" \
+    --out "$tmp/log" gsplat) > "$tmp/gsplat.log" 2>&1 || fail "gpu_check.sh gsplat: $(cat "$tmp/gsplat.log")"
+  grep -q "^== raster_benchmark 1M (watergs; writes the scene): exit 0" "$tmp/log/gsplat.txt" ||
+    fail "gsplat stage: no raster_benchmark run: $(cat "$tmp/log/gsplat.txt")"
+  grep -q "no PyTorch with CUDA on this machine" "$tmp/log/gsplat.txt" ||
+    fail "gsplat stage: no line about PyTorch: $(cat "$tmp/log/gsplat.txt")"
+fi
 
 [ $fails -eq 0 ] && echo "gpu scripts: all checks passed"
 exit $((fails > 0))
