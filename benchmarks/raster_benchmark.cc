@@ -229,9 +229,15 @@ int main(int argc, char** argv) {
     const GaussianModel huge =
         SyntheticScene(hd, 1000000, opt.sh_degree, true, 3);
     if (!opt.write_scene.empty()) {
-      std::filesystem::create_directories(opt.write_scene);
-      WritePly(opt.write_scene + "/scene_1m.ply", huge);
-      WriteCameraJson(opt.write_scene + "/camera_1m.json", hd);
+      try {
+        std::filesystem::create_directories(opt.write_scene);
+        WritePly(opt.write_scene + "/scene_1m.ply", huge);
+        WriteCameraJson(opt.write_scene + "/camera_1m.json", hd);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "raster_benchmark: --write_scene %s: %s\n",
+                     opt.write_scene.c_str(), e.what());
+        return 2;
+      }
       std::printf("wrote %s/scene_1m.ply and camera_1m.json\n",
                   opt.write_scene.c_str());
     }

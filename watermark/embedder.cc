@@ -255,7 +255,9 @@ std::string Embedder::RunSignature() const {
     j["jpeg_layer"] = {options_.jpeg_quality, options_.jpeg_fraction};
   }
   if (options_.hard_views > 0) {
-    j["hard_views"] = {options_.hard_views, options_.hard_view_fraction};
+    // The pool is rescored every check_every iterations: part of the run.
+    j["hard_views"] = {options_.hard_views, options_.hard_view_fraction,
+                       options_.check_every};
   }
   j["densify"] = options_.densify;
   j["message"] = BitsToString(message_);
