@@ -45,6 +45,14 @@ double WeakestMargin(const std::vector<float>& logits, const Bits& message) {
   return weakest;
 }
 
+// The owner's reading of a view's `logits`: minus the input model's at the
+// same viewpoint, ties read against the claim (as extract --raw_path reads).
+void SubtractReference(const std::vector<float>& raw, const Bits& message,
+                       std::vector<float>* logits) {
+  for (size_t i = 0; i < logits->size(); ++i) (*logits)[i] -= raw[i];
+  ResolveOwnerTies(logits, &message);
+}
+
 }  // namespace
 
 std::array<bool, kNumParamGroups> ParseParamMask(const std::string& text) {
@@ -631,9 +639,7 @@ void Embedder::ScorePool() {
     RenderCurrent(pool_->camera(k), &image);
     std::vector<float> logits = decoder_->Logits(image);
     if (options_.owner_reading) {
-      const std::vector<float>& raw = *PoolReferenceLogits(k);
-      for (size_t i = 0; i < logits.size(); ++i) logits[i] -= raw[i];
-      ResolveOwnerTies(&logits, &message_);
+      SubtractReference(*PoolReferenceLogits(k), message_, &logits);
     }
     pool_->SetDeficit(k, MarginDeficit(logits, message_, margin));
   }
@@ -649,9 +655,8 @@ double Embedder::DecodeViews(
     RenderCurrent(cameras[k], &image);
     std::vector<float> logits = decoder_->Logits(image);
     if (options_.owner_reading) {
-      const std::vector<float> raw = decoder_->Logits(*RenderInput(cameras[k]));
-      for (size_t i = 0; i < logits.size(); ++i) logits[i] -= raw[i];
-      ResolveOwnerTies(&logits, &message_);
+      SubtractReference(decoder_->Logits(*RenderInput(cameras[k])), message_,
+                        &logits);
     }
     mean_ber += double(CountBitErrors(logits, message_)) / message_.size() /
                 cameras.size();

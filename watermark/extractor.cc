@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <random>
 
 #include "gaussian/util/error.h"
@@ -22,18 +23,28 @@ RenderCamera InterpolateCameras(const RenderCamera& a, const RenderCamera& b,
   return cam;
 }
 
-std::vector<RenderCamera> SampleFreeViewpoints(const TrainingViews& views,
-                                               int n, uint64_t seed) {
-  if (views.NumViews() == 0) Fail("extract: no cameras to sample around");
+std::vector<RenderCamera> SampleViewpointsBetween(
+    const TrainingViews& views, const std::vector<size_t>& train_views, int n,
+    uint64_t seed) {
+  if (train_views.empty()) Fail("no cameras to sample viewpoints between");
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   std::vector<RenderCamera> out;
   for (int k = 0; k < n; ++k) {
-    const RenderCamera a = views.Camera(rng() % views.NumViews());
-    const RenderCamera b = views.Camera(rng() % views.NumViews());
-    out.push_back(InterpolateCameras(a, b, uniform(rng)));
+    const size_t a = train_views[rng() % train_views.size()];
+    const size_t b = train_views[rng() % train_views.size()];
+    out.push_back(
+        InterpolateCameras(views.Camera(a), views.Camera(b), uniform(rng)));
   }
   return out;
+}
+
+std::vector<RenderCamera> SampleFreeViewpoints(const TrainingViews& views,
+                                               int n, uint64_t seed) {
+  if (views.NumViews() == 0) Fail("extract: no cameras to sample around");
+  std::vector<size_t> all(views.NumViews());
+  std::iota(all.begin(), all.end(), size_t(0));
+  return SampleViewpointsBetween(views, all, n, seed);
 }
 
 ExtractionResult ExtractWatermark(Rasterizer& rasterizer,

@@ -58,6 +58,13 @@ struct ExtractionResult {
 RenderCamera InterpolateCameras(const RenderCamera& a, const RenderCamera& b,
                                 double t);
 
+// n viewpoints, each between two of `train_views` (indices into `views`; a
+// random pair, a random fraction), drawn from `seed`: the embedder's check
+// viewpoints and hard-viewpoint pool.
+std::vector<RenderCamera> SampleViewpointsBetween(
+    const TrainingViews& views, const std::vector<size_t>& train_views, int n,
+    uint64_t seed);
+
 // `n` viewpoints between the cameras of `views`: each interpolates position
 // (linearly) and orientation (slerp) between two random cameras at a random
 // fraction, keeping the first one's intrinsics. Deterministic for a seed.

@@ -5,27 +5,7 @@
 #include <cmath>
 #include <numeric>
 
-#include "gaussian/trainer.h"
-#include "gaussian/util/error.h"
-#include "watermark/extractor.h"
-
 namespace watergs {
-
-std::vector<RenderCamera> SampleViewpointsBetween(
-    const TrainingViews& views, const std::vector<size_t>& train_views, int n,
-    uint64_t seed) {
-  if (train_views.empty()) Fail("embed: no training views for the pool");
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> uniform(0.0, 1.0);
-  std::vector<RenderCamera> out;
-  for (int k = 0; k < n; ++k) {
-    const size_t a = train_views[rng() % train_views.size()];
-    const size_t b = train_views[rng() % train_views.size()];
-    out.push_back(
-        InterpolateCameras(views.Camera(a), views.Camera(b), uniform(rng)));
-  }
-  return out;
-}
 
 double MarginDeficit(const std::vector<float>& logits, const Bits& message,
                      double margin) {

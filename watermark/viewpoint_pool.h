@@ -14,14 +14,6 @@
 
 namespace watergs {
 
-class TrainingViews;
-
-// n free viewpoints, each between two of `train_views` (random pair, random
-// fraction: what extract --num_views samples), drawn from `seed`.
-std::vector<RenderCamera> SampleViewpointsBetween(
-    const TrainingViews& views, const std::vector<size_t>& train_views, int n,
-    uint64_t seed);
-
 // How far one view's logits (> 0 reads bit 1) fall short of reading
 // `message` past `margin`: the sum over bits of max(0, margin - s), s the
 // logit signed towards the message bit. 0 once every bit reads past it.

@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "benchmarks/benchmark_util.h"
+#include "gaussian/cpu_rasterizer.h"
+#include "gaussian/cuda/compact_gradient_buffers.h"
 #include "gaussian/cuda/cuda_check.h"
 #include "gaussian/cuda/cuda_model_mirror.h"
 #include "gaussian/cuda/cuda_rasterizer_device.h"
@@ -24,9 +26,7 @@ ResidentRasterTiming TimeResidentRaster(const GaussianModel& model,
   CudaRasterizer rasterizer;
   DeviceGaussianArrays arrays;
   arrays.Upload(model);
-  const PixelRect rect = options.rect.empty()
-                             ? PixelRect{0, 0, camera.width, camera.height}
-                             : options.rect;
+  const PixelRect rect = ResolveRenderRect(camera, options);
   const size_t channels = size_t(rect.width) * rect.height * 3;
   DeviceBuffer<float> image(channels), grad_image(channels);
   std::vector<float> host_grad(channels);
@@ -35,21 +35,8 @@ ResidentRasterTiming TimeResidentRaster(const GaussianModel& model,
   for (float& g : host_grad) g = small(rng);
   grad_image.Upload(host_grad);
 
-  const size_t n = model.size();
-  DeviceBuffer<float> means(3 * n), scales(3 * n), quats(4 * n), opacity(n),
-      color(3 * n), view_dir(3 * n), norm(n), norm_ndc(n);
-  DeviceBuffer<uint8_t> visible(n);
-  CudaGradientArrays grads;
-  grads.means = means.data();
-  grads.log_scales = scales.data();
-  grads.quats = quats.data();
-  grads.opacity_logits = opacity.data();
-  grads.compact_sh = true;
-  grads.sh_color_grad = color.data();
-  grads.sh_view_dir = view_dir.data();
-  grads.mean2d_grad_norm = norm.data();
-  grads.mean2d_grad_norm_ndc = norm_ndc.data();
-  grads.visible = visible.data();
+  CompactGradientBuffers buffers;
+  const CudaGradientArrays grads = buffers.Resize(model.size());
 
   const CudaModelArrays resident = arrays.Arrays();
   std::unique_ptr<RenderContext> context;

@@ -30,29 +30,7 @@ void CudaTrainingStep::MarkHostAdamEdited() { mirror_.MarkHostAdamEdited(); }
 void CudaTrainingStep::PushIfStale() { mirror_.PushIfStale(); }
 
 CudaGradientArrays CudaTrainingStep::GradientArrays() {
-  const size_t n = mirror_.model().size();
-  for (DeviceBuffer<float>* b :
-       {&grad_means_, &grad_log_scales_, &grad_color_, &grad_view_dir_}) {
-    b->Resize(3 * n);
-  }
-  grad_quats_.Resize(4 * n);
-  for (DeviceBuffer<float>* b :
-       {&grad_opacity_, &grad_norm_, &grad_norm_ndc_}) {
-    b->Resize(n);
-  }
-  visible_.Resize(n);
-  CudaGradientArrays g;
-  g.means = grad_means_.data();
-  g.log_scales = grad_log_scales_.data();
-  g.quats = grad_quats_.data();
-  g.opacity_logits = grad_opacity_.data();
-  g.compact_sh = true;
-  g.sh_color_grad = grad_color_.data();
-  g.sh_view_dir = grad_view_dir_.data();
-  g.mean2d_grad_norm = grad_norm_.data();
-  g.mean2d_grad_norm_ndc = grad_norm_ndc_.data();
-  g.visible = visible_.data();
-  return g;
+  return gradients_.Resize(mirror_.model().size());
 }
 
 void CudaTrainingStep::Forward(const RenderCamera& camera,
@@ -90,8 +68,8 @@ void CudaTrainingStep::Backward(GaussianGradients* statistics,
   // allocated in the rasterizer's pool either way).
   if (!density_) context_.reset();
   if (statistics) {
-    visible_.Download(&statistics->visible);
-    grad_norm_ndc_.Download(&statistics->mean2d_grad_norm_ndc);
+    gradients_.visible.Download(&statistics->visible);
+    gradients_.norm_ndc.Download(&statistics->mean2d_grad_norm_ndc);
   }
 }
 
@@ -99,13 +77,15 @@ size_t CudaTrainingStep::AdamStep(int64_t iteration, bool skip_opacity) {
   CudaAdam& adam = mirror_.adam();
   adam.SetIteration(iteration);
   CudaAdamArrays a = mirror_.AdamParams();
-  a.grads[static_cast<int>(ParamGroup::kXyz)] = grad_means_.data();
-  a.grads[static_cast<int>(ParamGroup::kOpacity)] = grad_opacity_.data();
-  a.grads[static_cast<int>(ParamGroup::kScaling)] = grad_log_scales_.data();
-  a.grads[static_cast<int>(ParamGroup::kRotation)] = grad_quats_.data();
+  a.grads[static_cast<int>(ParamGroup::kXyz)] = gradients_.means.data();
+  a.grads[static_cast<int>(ParamGroup::kOpacity)] =
+      gradients_.opacity_logits.data();
+  a.grads[static_cast<int>(ParamGroup::kScaling)] =
+      gradients_.log_scales.data();
+  a.grads[static_cast<int>(ParamGroup::kRotation)] = gradients_.quats.data();
   a.compact_sh = true;
-  a.sh_color_grad = grad_color_.data();
-  a.sh_view_dir = grad_view_dir_.data();
+  a.sh_color_grad = gradients_.color.data();
+  a.sh_view_dir = gradients_.view_dir.data();
   a.sh_active_degree = active_sh_degree_;
   const bool opacity_enabled = adam.GroupEnabled(ParamGroup::kOpacity);
   if (skip_opacity) adam.SetGroupEnabled(ParamGroup::kOpacity, false);

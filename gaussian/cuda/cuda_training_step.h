@@ -20,6 +20,7 @@
 
 #include "gaussian/adam.h"
 #include "gaussian/camera.h"
+#include "gaussian/cuda/compact_gradient_buffers.h"
 #include "gaussian/cuda/cuda_adam.h"
 #include "gaussian/cuda/cuda_density.h"
 #include "gaussian/cuda/cuda_loss.h"
@@ -77,9 +78,7 @@ class CudaTrainingStep : public DeviceTrainingStep {
   CudaModelMirror mirror_;
   CudaTrainingLoss loss_;
   // Gradients (factored SH), densification norms and visibility, N rows.
-  DeviceBuffer<float> grad_means_, grad_log_scales_, grad_quats_, grad_opacity_,
-      grad_color_, grad_view_dir_, grad_norm_, grad_norm_ndc_;
-  DeviceBuffer<uint8_t> visible_;
+  CompactGradientBuffers gradients_;
   // Ground truth, render and dLoss/d(render) of the current view (HWC).
   DeviceBuffer<float> truth_, image_, grad_image_;
   int width_ = 0, height_ = 0;

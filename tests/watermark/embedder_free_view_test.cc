@@ -54,6 +54,27 @@ double NovelViewBer(Embedder& embedder, const Scene& s, BitDecoder& decoder,
   return ber / r.views.size();
 }
 
+// An embedder of `s` with `o`, the tiny decoder and message 1 (the resume
+// tests build three alike).
+std::unique_ptr<Embedder> NewEmbedder(const EmbedOptions& o, const Scene& s,
+                                      FeatureDecoder* decoder) {
+  return std::make_unique<Embedder>(o, s.views, s.train, s.model, 3.0, decoder,
+                                    RandomBits(8, 1), MakeCpuRasterizer());
+}
+
+// Steps a fresh embedder `steps` times, checkpoints it to `path` and resumes
+// a new one from there (not yet run on).
+std::unique_ptr<Embedder> ResumedAfter(int steps, const EmbedOptions& o,
+                                       const Scene& s, FeatureDecoder* decoder,
+                                       const std::string& path) {
+  const std::unique_ptr<Embedder> first = NewEmbedder(o, s, decoder);
+  for (int i = 0; i < steps; ++i) first->Step();
+  first->SaveCheckpoint(path);
+  std::unique_ptr<Embedder> resumed = NewEmbedder(o, s, decoder);
+  resumed->Resume(path);
+  return resumed;
+}
+
 EmbedOptions FreeViewOptions(int64_t iterations) {
   EmbedOptions o = DefaultEmbedOptions(iterations);
   o.crop_size = 0;
@@ -93,24 +114,16 @@ TEST(EmbedderFreeViews, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   EmbedOptions o = FreeViewOptions(6);
   o.free_view_fraction = 0.5;
   const std::string path = ::testing::TempDir() + "free_view_resume.ckpt";
-  Embedder full(o, s.views, s.train, s.model, 3.0, decoder.get(),
-                RandomBits(8, 1), MakeCpuRasterizer());
-  full.Run();
-  Embedder first(o, s.views, s.train, s.model, 3.0, decoder.get(),
-                 RandomBits(8, 1), MakeCpuRasterizer());
-  for (int i = 0; i < 5; ++i) first.Step();
-  first.SaveCheckpoint(path);
-  Embedder resumed(o, s.views, s.train, s.model, 3.0, decoder.get(),
-                   RandomBits(8, 1), MakeCpuRasterizer());
-  resumed.Resume(path);
-  resumed.Run();
-  EXPECT_EQ(resumed.model().sh_dc, full.model().sh_dc);
-  EXPECT_EQ(resumed.model().means, full.model().means);
+  const std::unique_ptr<Embedder> full = NewEmbedder(o, s, decoder.get());
+  full->Run();
+  const std::unique_ptr<Embedder> resumed =
+      ResumedAfter(3, o, s, decoder.get(), path);
+  resumed->Run();
+  EXPECT_EQ(resumed->model().sh_dc, full->model().sh_dc);
+  EXPECT_EQ(resumed->model().means, full->model().means);
   // A run with another fraction does not take this checkpoint.
   o.free_view_fraction = 0.25;
-  Embedder other(o, s.views, s.train, s.model, 3.0, decoder.get(),
-                 RandomBits(8, 1), MakeCpuRasterizer());
-  EXPECT_THROW(other.Resume(path), Error);
+  EXPECT_THROW(NewEmbedder(o, s, decoder.get())->Resume(path), Error);
   std::remove(path.c_str());
 }
 
@@ -127,30 +140,22 @@ TEST(EmbedderFreeViews, HardViewpointRunsResumeExactly) {
   o.hard_view_fraction = 1;
   o.check_every = 4;
   const std::string path = ::testing::TempDir() + "hard_view_resume.ckpt";
-  Embedder full(o, s.views, s.train, s.model, 3.0, decoder.get(),
-                RandomBits(8, 1), MakeCpuRasterizer());
-  full.Run();
-  Embedder first(o, s.views, s.train, s.model, 3.0, decoder.get(),
-                 RandomBits(8, 1), MakeCpuRasterizer());
-  for (int i = 0; i < 5; ++i) first.Step();
-  first.SaveCheckpoint(path);
-  Embedder resumed(o, s.views, s.train, s.model, 3.0, decoder.get(),
-                   RandomBits(8, 1), MakeCpuRasterizer());
-  resumed.Resume(path);
+  const std::unique_ptr<Embedder> full = NewEmbedder(o, s, decoder.get());
+  full->Run();
+  const std::unique_ptr<Embedder> resumed =
+      ResumedAfter(5, o, s, decoder.get(), path);
   // The pool's deficits (measured at 4) come back with the rest.
   const std::string again = path + ".again";
-  resumed.SaveCheckpoint(again);
+  resumed->SaveCheckpoint(again);
   EXPECT_EQ(ReadCheckpoint(again).rng_state, ReadCheckpoint(path).rng_state);
   std::remove(again.c_str());
-  resumed.Run();
-  EXPECT_EQ(resumed.model().sh_dc, full.model().sh_dc);
-  EXPECT_EQ(resumed.model().means, full.model().means);
-  EXPECT_NE(full.model().sh_dc, s.model.sh_dc);
+  resumed->Run();
+  EXPECT_EQ(resumed->model().sh_dc, full->model().sh_dc);
+  EXPECT_EQ(resumed->model().means, full->model().means);
+  EXPECT_NE(full->model().sh_dc, s.model.sh_dc);
   // A run with another pool does not take this checkpoint.
   o.hard_views = 5;
-  Embedder other(o, s.views, s.train, s.model, 3.0, decoder.get(),
-                 RandomBits(8, 1), MakeCpuRasterizer());
-  EXPECT_THROW(other.Resume(path), Error);
+  EXPECT_THROW(NewEmbedder(o, s, decoder.get())->Resume(path), Error);
   std::remove(path.c_str());
 }
 

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "tests/common/embed_scene.h"
+#include "watermark/extractor.h"
 
 namespace watergs {
 namespace {
