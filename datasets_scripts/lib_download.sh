@@ -136,10 +136,17 @@ match_downscaled_names() {
 check_colmap_scene() {
   local scene="$1" file
   [ -d "$scene/images" ] || die "$scene/images is missing"
+  local reconstruct="watergs reconstruct --image_path $scene/images --workspace_path ${scene}_reconstructed"
+  if [ ! -d "$scene/sparse/0" ]; then
+    # A copy of the photos alone (and poses_bounds.npy): the poses come from reconstruct.
+    log "warning: $scene has no COLMAP model (sparse/0): reconstruct the poses with: $reconstruct"
+    log "ready: $scene ($(count_images "$scene/images") images, no model)"
+    return
+  fi
   for file in cameras images points3D; do
     if [ "$file" == images ] && [ ! -f "$scene/sparse/0/images.bin" ] && [ ! -f "$scene/sparse/0/images.txt" ]; then
       log "warning: $scene/sparse/0 has no images.bin (a copy that left it out): reconstruct the" \
-        "poses with: watergs reconstruct --image_path $scene/images --workspace_path ${scene}_reconstructed"
+        "poses with: $reconstruct"
       continue
     fi
     [ -f "$scene/sparse/0/$file.bin" ] || [ -f "$scene/sparse/0/$file.txt" ] \

@@ -38,18 +38,33 @@ bool NextRow(sqlite3* db, sqlite3_stmt* statement, const std::string& path) {
   FailAt(path, std::string("unreadable database (") + sqlite3_errmsg(db) + ")");
 }
 
-}  // namespace
+using Database = std::unique_ptr<sqlite3, CloseDatabase>;
 
-std::vector<DatabaseImage> ReadDatabaseImages(const std::string& path) {
+// `flags`: SQLITE_OPEN_READONLY or SQLITE_OPEN_READWRITE (never creates).
+Database Open(const std::string& path, int flags) {
   if (!std::filesystem::is_regular_file(path)) FailAt(path, "no such file");
   sqlite3* raw = nullptr;
-  const int opened =
-      sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READONLY, nullptr);
-  std::unique_ptr<sqlite3, CloseDatabase> db(raw);
+  const int opened = sqlite3_open_v2(path.c_str(), &raw, flags, nullptr);
+  Database db(raw);
   if (opened != SQLITE_OK) {
     FailAt(path, std::string("cannot open the database (") +
                      (raw ? sqlite3_errmsg(raw) : "out of memory") + ")");
   }
+  return db;
+}
+
+// Runs one statement that returns no rows.
+void Execute(sqlite3* db, const std::string& path, const char* sql) {
+  if (sqlite3_exec(db, sql, nullptr, nullptr, nullptr) != SQLITE_OK) {
+    FailAt(path, std::string("cannot write the database (") +
+                     sqlite3_errmsg(db) + ")");
+  }
+}
+
+}  // namespace
+
+std::vector<DatabaseImage> ReadDatabaseImages(const std::string& path) {
+  const Database db = Open(path, SQLITE_OPEN_READONLY);
   std::map<int, DatabaseImage> images;
   Statement names =
       Prepare(db.get(), path, "SELECT image_id, name FROM images");
@@ -88,6 +103,64 @@ std::vector<DatabaseImage> ReadDatabaseImages(const std::string& path) {
               return a.name < b.name;
             });
   return sorted;
+}
+
+int ShareCameras(const std::string& path,
+                 const std::vector<std::vector<std::string>>& image_groups) {
+  const Database db = Open(path, SQLITE_OPEN_READWRITE);
+  // A failure below closes the connection inside the transaction, which
+  // SQLite rolls back: the database is changed whole or not at all.
+  Execute(db.get(), path, "BEGIN IMMEDIATE");
+  Statement camera_of = Prepare(
+      db.get(), path,
+      "SELECT images.camera_id, cameras.width, cameras.height FROM images "
+      "JOIN cameras ON images.camera_id = cameras.camera_id "
+      "WHERE images.name = ?");
+  Statement assign =
+      Prepare(db.get(), path, "UPDATE images SET camera_id = ? WHERE name = ?");
+  struct Camera {
+    int64_t id, width, height;
+  };
+  const auto find_camera = [&](const std::string& name) {
+    sqlite3_reset(camera_of.get());
+    sqlite3_bind_text(camera_of.get(), 1, name.c_str(), -1, SQLITE_TRANSIENT);
+    if (!NextRow(db.get(), camera_of.get(), path)) {
+      FailAt(path, "holds no image named " + name + " with a camera");
+    }
+    return Camera{sqlite3_column_int64(camera_of.get(), 0),
+                  sqlite3_column_int64(camera_of.get(), 1),
+                  sqlite3_column_int64(camera_of.get(), 2)};
+  };
+  for (const std::vector<std::string>& group : image_groups) {
+    if (group.size() < 2) continue;
+    const Camera shared = find_camera(group[0]);
+    for (size_t k = 1; k < group.size(); ++k) {
+      const Camera own = find_camera(group[k]);
+      if (own.width != shared.width || own.height != shared.height) {
+        FailAt(path, group[k] + "'s camera is " + std::to_string(own.width) +
+                         "x" + std::to_string(own.height) + ", " + group[0] +
+                         "'s " + std::to_string(shared.width) + "x" +
+                         std::to_string(shared.height) +
+                         ": photos of two sizes cannot share a camera");
+      }
+      sqlite3_reset(assign.get());
+      sqlite3_bind_int64(assign.get(), 1, shared.id);
+      sqlite3_bind_text(assign.get(), 2, group[k].c_str(), -1,
+                        SQLITE_TRANSIENT);
+      NextRow(db.get(), assign.get(), path);
+    }
+  }
+  Execute(db.get(), path,
+          "DELETE FROM cameras WHERE camera_id NOT IN "
+          "(SELECT camera_id FROM images)");
+  Statement count = Prepare(db.get(), path, "SELECT COUNT(*) FROM cameras");
+  NextRow(db.get(), count.get(), path);
+  const int cameras = sqlite3_column_int(count.get(), 0);
+  camera_of.reset();
+  assign.reset();
+  count.reset();
+  Execute(db.get(), path, "COMMIT");
+  return cameras;
 }
 
 }  // namespace watergs

@@ -1,5 +1,6 @@
-// Reading COLMAP's database.db (SQLite): the images and their SIFT
-// descriptors, which watergs matches itself on the CPU (sift_matching.h).
+// COLMAP's database.db (SQLite): the images and their SIFT descriptors, which
+// watergs matches itself on the CPU (sift_matching.h), and the cameras the
+// images share (photo_cameras.h).
 #pragma once
 
 #include <string>
@@ -20,5 +21,13 @@ struct DatabaseImage {
 // Error (one line naming the file) for a missing or unreadable database, one
 // without COLMAP's tables, or descriptors that are not rows x 128 bytes.
 std::vector<DatabaseImage> ReadDatabaseImages(const std::string& path);
+
+// Gives every image named in a group the camera of the group's first image
+// and deletes the cameras no image uses any more, in one transaction; returns
+// the number of cameras left. Idempotent. The images of a group must have
+// cameras of one size (the caller groups by size). Error (one line naming the
+// file) for an image not in the database or cameras of different sizes.
+int ShareCameras(const std::string& path,
+                 const std::vector<std::vector<std::string>>& image_groups);
 
 }  // namespace watergs

@@ -18,6 +18,7 @@
 #include "gaussian/util/file_util.h"
 #include "gaussian/util/progress.h"
 #include "plugin/colmap_database.h"
+#include "plugin/image_header.h"
 #include "plugin/model_analyzer.h"
 #include "plugin/reconstruction_io.h"
 #include "plugin/report_evidence.h"
@@ -134,18 +135,37 @@ std::vector<std::pair<int, int>> MatchedPairs(const std::string& matcher,
 
 // Whether every photo has the size of the first; Error naming an unreadable
 // one.
-bool AllOneSize(const std::vector<std::string>& photos) {
-  int w = -1, h = -1;
-  bool same = true;
-  for (const std::string& path : photos) {
-    const cv::Mat image = cv::imread(path, cv::IMREAD_REDUCED_GRAYSCALE_8);
-    if (image.empty()) FailAt(path, "not a readable image");
-    // Reduced by 8: equal sizes stay equal, different ones almost surely
-    // differ.
-    if (w < 0) w = image.cols, h = image.rows;
-    same = same && image.cols == w && image.rows == h;
+// Every photo's size and EXIF camera; error (one line) for a photo that does
+// not decode.
+std::vector<PhotoDescription> DescribePhotos(
+    const std::vector<std::string>& photos) {
+  std::vector<PhotoDescription> described(photos.size());
+  for (size_t k = 0; k < photos.size(); ++k) {
+    // Decoded (reduced by 8, cheap) so that a broken photo stops the run
+    // before anything is written.
+    const cv::Mat image = cv::imread(photos[k], cv::IMREAD_REDUCED_GRAYSCALE_8);
+    if (image.empty()) FailAt(photos[k], "not a readable image");
+    PhotoDescription& d = described[k];
+    if (!ReadImageHeaderSize(photos[k], &d.width, &d.height)) {
+      d.width = image.cols * 8, d.height = image.rows * 8;
+    }
+    d.exif = ReadExifCamera(photos[k]);
   }
-  return same;
+  return described;
+}
+
+// The names (in the workspace's images/) of photos that share a camera, in
+// groups of two or more.
+std::vector<std::vector<std::string>> SharedCameraGroups(
+    const std::vector<std::string>& photos, const PhotoCameras& cameras) {
+  std::vector<std::vector<std::string>> groups(cameras.num_groups);
+  for (size_t k = 0; k < photos.size(); ++k) {
+    groups[cameras.group[k]].push_back(fs::path(photos[k]).filename().string());
+  }
+  groups.erase(std::remove_if(groups.begin(), groups.end(),
+                              [](const auto& g) { return g.size() < 2; }),
+               groups.end());
+  return groups;
 }
 
 // Keeps the model with the most registered images as sparse/0; returns it.
@@ -355,6 +375,8 @@ bool NamedInCaptureOrder(const std::vector<std::string>& photos) {
   return true;
 }
 
+namespace {
+
 // "~4 min on 2 threads": exact matching and verification at 2,048 features
 // (0.055 + 0.015 CPU-seconds a pair on the demo, 2 cores).
 std::string MatchingTimeEstimate(int64_t pairs, int threads) {
@@ -365,14 +387,35 @@ std::string MatchingTimeEstimate(int64_t pairs, int threads) {
   return text;
 }
 
+// The plan's line on cameras: how many, and why.
+std::string CamerasReason(const PhotoCameras& cameras, int num_photos,
+                          bool in_capture_order) {
+  if (cameras.num_groups <= 1) {
+    return std::string("one camera (photos share one size") +
+           (cameras.num_exif_cameras == 1 ? " and EXIF camera)" : ")");
+  }
+  const std::string why =
+      in_capture_order ? "" : "photos in no order may come from many cameras; ";
+  if (cameras.num_exif_cameras == 0) {
+    return "a camera per photo (" + why + "no photo names its camera in EXIF)";
+  }
+  return std::to_string(cameras.num_groups) + " cameras for " +
+         std::to_string(num_photos) +
+         " photos, one per EXIF camera and size (" + why + cameras.summary +
+         ")";
+}
+
+}  // namespace
+
 ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
-                              bool one_size, const ReconstructOptions& options,
+                              const PhotoCameras& cameras,
+                              const ReconstructOptions& options,
                               bool names_with_spaces, bool in_capture_order) {
   ColmapPlan plan;
   plan.num_threads = num_threads;
   plan.use_gpu = gpu_sift;
-  plan.single_camera = one_size && in_capture_order;
-  plan.camera_per_photo = !in_capture_order;
+  plan.single_camera = cameras.num_groups <= 1;
+  plan.camera_per_photo = !plan.single_camera;
   const int64_t pairs = int64_t(num_photos) * (num_photos - 1) / 2;
   plan.matcher = options.matcher != "auto" ? options.matcher
                  : !in_capture_order || num_photos <= options.sequential_above
@@ -406,14 +449,10 @@ ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
        : gpu_sift               ? " (GPU SIFT)"
                   : " (CPU: 8,192 made matching 10 s an image on 2 cores; "
                     "2,048 registered 252 of 252 photos)"));
-  plan.reasons.push_back(
-      std::string("SIFT on the ") + (gpu_sift ? "GPU" : "CPU") + ", " +
-      std::to_string(num_threads) + " threads, " +
-      (plan.single_camera      ? "one camera (photos share one size)"
-       : plan.camera_per_photo ? "a camera per photo (photos in no order may "
-                                 "come from many cameras)"
-                               : "COLMAP's cameras for photos of several sizes "
-                                 "(3.8: a camera per photo)"));
+  plan.reasons.push_back(std::string("SIFT on the ") +
+                         (gpu_sift ? "GPU" : "CPU") + ", " +
+                         std::to_string(num_threads) + " threads, " +
+                         CamerasReason(cameras, num_photos, in_capture_order));
   plan.exact_matching = !gpu_sift && !names_with_spaces;
   plan.reasons.push_back(
       plan.exact_matching
@@ -425,6 +464,26 @@ ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
                    "space, which COLMAP's match list cannot name)");
   return plan;
 }
+
+namespace {
+
+// COLMAP 3.8 extracts a camera per photo; the photos of one EXIF camera and
+// size then share one in database.db, before matching and mapping.
+void ShareCamerasInDatabase(const fs::path& ws,
+                            const std::vector<std::string>& photos,
+                            const PhotoCameras& cameras) {
+  if (cameras.num_groups <= 1) return;
+  const auto groups = SharedCameraGroups(photos, cameras);
+  if (groups.empty()) return;
+  const int left = ShareCameras((ws / "database.db").string(), groups);
+  std::printf(
+      "reconstruct: cameras: %d in database.db (photos of one EXIF "
+      "camera and size share one)\n",
+      left);
+  std::fflush(stdout);
+}
+
+}  // namespace
 
 void RunReconstruction(const ReconstructOptions& o) {
   if (o.workspace_path.empty()) Fail("reconstruct: --workspace_path is empty");
@@ -446,7 +505,9 @@ void RunReconstruction(const ReconstructOptions& o) {
                                     "needs at least 3, overlapping");
   }
   // Every photo readable before anything is written.
-  const bool single_camera = AllOneSize(photos);
+  const bool in_capture_order = NamedInCaptureOrder(photos);
+  const PhotoCameras cameras =
+      GroupPhotosByCamera(DescribePhotos(photos), in_capture_order);
   fs::create_directories(ws / ".reconstruct");
   if (!fs::exists(images)) {
     fs::create_directory_symlink(photos_dir, images);
@@ -462,8 +523,8 @@ void RunReconstruction(const ReconstructOptions& o) {
         return fs::path(p).filename().string().find(' ') != std::string::npos;
       });
   const ColmapPlan plan =
-      PlanReconstruction(int(photos.size()), threads, gpu, single_camera, o,
-                         names_with_spaces, NamedInCaptureOrder(photos));
+      PlanReconstruction(int(photos.size()), threads, gpu, cameras, o,
+                         names_with_spaces, in_capture_order);
   std::vector<Stage> stages =
       ColmapStages(plan, o.colmap, ws, int64_t(photos.size()));
 
@@ -506,6 +567,11 @@ void RunReconstruction(const ReconstructOptions& o) {
     const fs::path marker = ws / ".reconstruct" / (stage.name + ".done");
     if (done[k]) {
       std::printf("reconstruct: %s done before, kept\n", stage.name.c_str());
+      // Idempotent; a workspace extracted before cameras were shared gets
+      // them before its matching.
+      if (stage.name == "features" && k + 1 < stages.size() && !done[k + 1]) {
+        ShareCamerasInDatabase(ws, photos, cameras);
+      }
       continue;
     }
     if (stage.name == "mapping") {
@@ -515,6 +581,7 @@ void RunReconstruction(const ReconstructOptions& o) {
     }
     RunStage(stage);
     AtomicWriteFile(marker.string(), StageMarker(stage.command, ws));
+    if (stage.name == "features") ShareCamerasInDatabase(ws, photos, cameras);
   }
 
   const std::string model = KeepLargestModel((ws / "sparse").string());

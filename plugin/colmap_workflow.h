@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "plugin/photo_cameras.h"
+
 namespace watergs {
 
 // Settings a run uses, and why (printed, and in docs/reconstruct.md).
@@ -26,9 +28,9 @@ struct ColmapPlan {
   // matcher. On the CPU, unless a photo's name holds a space (COLMAP's match
   // list cannot name it).
   bool exact_matching = false;
-  // One camera for all photos (in capture order, one size); else, for
-  // photos in no order, a camera per photo; else COLMAP's choice (3.8: a
-  // camera per photo; later versions group by size and EXIF camera).
+  // One camera for all photos (in capture order, one size, at most one EXIF
+  // camera); else COLMAP extracts a camera per photo and reconstruct shares
+  // one among the photos of each EXIF camera and size (photo_cameras.h).
   bool single_camera = true;
   bool camera_per_photo = false;
   // One line per choice: "matcher exhaustive: 48 photos, 1,128 pairs".
@@ -74,13 +76,14 @@ inline constexpr int kSequentialOverlap = 10;
 
 // Settings for `num_photos` photos on `num_threads` threads: photos in
 // capture order (`in_capture_order`) are matched exhaustively up to
-// options.sequential_above, sequentially beyond, and share one camera when
-// `one_size`; photos in no order are matched exhaustively (with the time it
-// should take) and get a camera each. 2,048 features an image on the CPU
-// (8,192 with GPU SIFT), matched exactly by watergs on the CPU unless
-// `names_with_spaces`; options given override the choice.
+// options.sequential_above, sequentially beyond; photos in no order are
+// matched exhaustively (with the time it should take). `cameras` (from
+// GroupPhotosByCamera) says which photos share a camera. 2,048 features an
+// image on the CPU (8,192 with GPU SIFT), matched exactly by watergs on the
+// CPU unless `names_with_spaces`; options given override the choice.
 ColmapPlan PlanReconstruction(int num_photos, int num_threads, bool gpu_sift,
-                              bool one_size, const ReconstructOptions& options,
+                              const PhotoCameras& cameras,
+                              const ReconstructOptions& options,
                               bool names_with_spaces = false,
                               bool in_capture_order = true);
 

@@ -5,9 +5,9 @@
 # must see no order, match every pair and give each photo its own camera (photos of a web
 # collection come from many cameras); the model must register all 24 and place them where they
 # were taken (the POV-Ray cameras, renamed the same way). Half the photos make a quarter of the
-# pairs (26 s instead of ~2 min). Not any half: with a focal length per photo, one ring at one
-# height (view_000-023) or every second photo (30 degrees apart) registered 24 of 24 at 0.3 px in
-# a collapsed model (centres 100% off, scale 0.002-0.04): focal length and depth trade off.
+# pairs (26 s instead of ~2 min). Not any half: one ring at one height (view_000-023) or every
+# second photo (30 degrees apart) registered 24 of 24 at 0.3 px in a collapsed model (centres 100%
+# off, scale 0.0008-0.04), with a camera per photo and with one camera for all alike.
 set -euo pipefail
 bin="${WATERGS_BIN:?WATERGS_BIN: the watergs CLI}"
 root="$(cd "$(dirname "$0")/../.." && pwd)"

@@ -10,23 +10,34 @@
 namespace watergs {
 namespace {
 
+// `n` photos of one size (480x360) without EXIF, or two sizes.
+PhotoCameras Cameras(int n, bool in_capture_order, bool one_size = true) {
+  std::vector<PhotoDescription> photos(n, PhotoDescription{480, 360, {}});
+  if (!one_size) photos[1].width = 360;
+  return GroupPhotosByCamera(photos, in_capture_order);
+}
+
 TEST(PlanReconstruction, MatchesEveryPairUpToTheLimitThenNeighbours) {
   const ReconstructOptions automatic;
   // The demo's 48 photos: every pair (sequential placed some wrongly).
-  const ColmapPlan demo = PlanReconstruction(48, 2, false, true, automatic);
+  const ColmapPlan demo =
+      PlanReconstruction(48, 2, false, Cameras(48, true), automatic);
   EXPECT_EQ(demo.matcher, "exhaustive");
   EXPECT_NE(demo.reasons[0].find("1128 pairs"), std::string::npos)
       << demo.reasons[0];
-  EXPECT_EQ(PlanReconstruction(kMaxExhaustivePhotos, 2, false, true, automatic)
+  EXPECT_EQ(PlanReconstruction(kMaxExhaustivePhotos, 2, false,
+                               Cameras(kMaxExhaustivePhotos, true), automatic)
                 .matcher,
             "exhaustive");
   const ColmapPlan walk =
-      PlanReconstruction(kMaxExhaustivePhotos + 1, 2, false, true, automatic);
+      PlanReconstruction(kMaxExhaustivePhotos + 1, 2, false,
+                         Cameras(kMaxExhaustivePhotos + 1, true), automatic);
   EXPECT_EQ(walk.matcher, "sequential");
   EXPECT_NE(walk.reasons[0].find("1055 pairs"), std::string::npos)
       << walk.reasons[0];
   EXPECT_EQ(demo.max_features, 2048);
-  EXPECT_EQ(PlanReconstruction(48, 2, true, true, automatic).max_features,
+  EXPECT_EQ(PlanReconstruction(48, 2, true, Cameras(48, true), automatic)
+                .max_features,
             8192);
 }
 
@@ -34,7 +45,8 @@ TEST(PlanReconstruction, OptionsGivenOverrideTheChoice) {
   ReconstructOptions given;
   given.matcher = "sequential";
   given.max_features = 1024;
-  const ColmapPlan plan = PlanReconstruction(48, 2, false, true, given);
+  const ColmapPlan plan =
+      PlanReconstruction(48, 2, false, Cameras(48, true), given);
   EXPECT_EQ(plan.matcher, "sequential");
   EXPECT_EQ(plan.max_features, 1024);
   EXPECT_NE(plan.reasons[0].find("(--matcher)"), std::string::npos);
@@ -61,29 +73,53 @@ TEST(NamedInCaptureOrder, ANumberedSequenceIsAnOrderAWebCollectionIsNot) {
 TEST(PlanReconstruction, PhotosInNoOrderAreMatchedEveryPairWithACameraEach) {
   ReconstructOptions automatic;
   automatic.sequential_above = 20;
-  const ColmapPlan ordered =
-      PlanReconstruction(48, 2, false, true, automatic, false, true);
+  const ColmapPlan ordered = PlanReconstruction(48, 2, false, Cameras(48, true),
+                                                automatic, false, true);
   EXPECT_EQ(ordered.matcher, "sequential");
   EXPECT_TRUE(ordered.single_camera);
   EXPECT_FALSE(ordered.camera_per_photo);
-  const ColmapPlan unordered =
-      PlanReconstruction(48, 2, false, true, automatic, false, false);
+  const ColmapPlan unordered = PlanReconstruction(
+      48, 2, false, Cameras(48, false), automatic, false, false);
   EXPECT_EQ(unordered.matcher, "exhaustive");
   EXPECT_FALSE(unordered.single_camera);
   EXPECT_TRUE(unordered.camera_per_photo);
   EXPECT_NE(unordered.reasons[0].find("no capture order"), std::string::npos)
       << unordered.reasons[0];
   // 135 photos: 9,045 pairs at 0.07 CPU-seconds each on 2 threads.
-  const ColmapPlan web = PlanReconstruction(135, 2, false, true,
+  const ColmapPlan web = PlanReconstruction(135, 2, false, Cameras(135, false),
                                             ReconstructOptions(), false, false);
   EXPECT_NE(web.reasons[0].find("9045 pairs"), std::string::npos);
   EXPECT_NE(web.reasons[0].find("~5 min on 2 threads"), std::string::npos)
       << web.reasons[0];
-  // Photos of several sizes in order: COLMAP's grouping by size and EXIF.
-  const ColmapPlan sizes =
-      PlanReconstruction(48, 2, false, false, ReconstructOptions());
+  EXPECT_NE(unordered.reasons[2].find("a camera per photo"), std::string::npos)
+      << unordered.reasons[2];
+  // Photos of several sizes in order: a camera each (no EXIF to group by).
+  const ColmapPlan sizes = PlanReconstruction(
+      48, 2, false, Cameras(48, true, false), ReconstructOptions());
   EXPECT_FALSE(sizes.single_camera);
-  EXPECT_FALSE(sizes.camera_per_photo);
+  EXPECT_TRUE(sizes.camera_per_photo);
+}
+
+TEST(PlanReconstruction, SaysHowManyEXIFCamerasItFound) {
+  const ExifCamera canon{"Canon", "Canon EOS 5D", 24}, phone{"Apple", "x", 4};
+  const PhotoCameras two = GroupPhotosByCamera(
+      {{480, 360, canon}, {480, 360, canon}, {480, 360, phone}}, false);
+  const ColmapPlan plan =
+      PlanReconstruction(3, 2, false, two, ReconstructOptions(), false, false);
+  EXPECT_TRUE(plan.camera_per_photo);
+  EXPECT_NE(plan.reasons[2].find("2 cameras for 3 photos, one per EXIF camera "
+                                 "and size"),
+            std::string::npos)
+      << plan.reasons[2];
+  const PhotoCameras one = GroupPhotosByCamera(
+      {{480, 360, canon}, {480, 360, canon}, {480, 360, canon}}, true);
+  const ColmapPlan walk =
+      PlanReconstruction(3, 2, false, one, ReconstructOptions(), false, true);
+  EXPECT_TRUE(walk.single_camera);
+  EXPECT_NE(walk.reasons[2].find("one camera (photos share one size and EXIF "
+                                 "camera)"),
+            std::string::npos)
+      << walk.reasons[2];
 }
 
 }  // namespace
