@@ -585,12 +585,23 @@ void RunReconstruction(const ReconstructOptions& o) {
   }
 
   const std::string model = KeepLargestModel((ws / "sparse").string());
-  const ModelSummary s = AnalyzeModel(ReadReconstruction(model));
+  const Reconstruction reconstruction = ReadReconstruction(model);
+  const ModelSummary s = AnalyzeModel(reconstruction);
   std::printf(
       "reconstruct: %zu of %zu photos registered, %zu points, mean "
       "reprojection error %.2f px -> %s\n",
       s.num_reg_images, photos.size(), s.num_points3D,
       s.mean_reprojection_error, model.c_str());
+  const double baseline = MedianNeighbourBaselineToDepth(reconstruction);
+  if (baseline < kCollapsedBaselineToDepth) {
+    std::printf(
+        "reconstruct: warning: neighbouring cameras sit %.2f%% of the scene's "
+        "depth apart (median; photos with parallax: 3-30%%): a model collapsed "
+        "onto few viewpoints, or photos taken from one spot. Check it with "
+        "`watergs model_info --reference_path` if known poses exist, or add "
+        "photos taken between these\n",
+        100 * baseline);
+  }
   if (double(s.num_reg_images) < o.min_registered_fraction * photos.size()) {
     Fail("reconstruct: only " + std::to_string(s.num_reg_images) + " of " +
          std::to_string(photos.size()) +

@@ -2,7 +2,11 @@
 // printf formats so that outputs can be compared line by line.
 #include "plugin/model_analyzer.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <limits>
+#include <vector>
 
 namespace watergs {
 
@@ -33,6 +37,48 @@ std::string FormatModelSummary(const ModelSummary& summary) {
                 summary.mean_track_length, summary.mean_observations_per_image,
                 summary.mean_reprojection_error);
   return buffer;
+}
+
+namespace {
+
+double Median(std::vector<double> values) {
+  std::nth_element(values.begin(), values.begin() + values.size() / 2,
+                   values.end());
+  return values[values.size() / 2];
+}
+
+}  // namespace
+
+double MedianNeighbourBaselineToDepth(const Reconstruction& reconstruction) {
+  const std::vector<image_t>& ids = reconstruction.RegImageIds();
+  std::vector<Eigen::Vector3d> centres;
+  for (const image_t id : ids) {
+    centres.push_back(reconstruction.GetImage(id).ProjectionCenter());
+  }
+  std::vector<double> ratios;
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const Image& image = reconstruction.GetImage(ids[k]);
+    const Eigen::Matrix3d rotation = image.RotationMatrix();
+    std::vector<double> depths;
+    for (const Point2D& p : image.points2D) {
+      if (!p.HasPoint3D() || !reconstruction.ExistsPoint3D(p.point3D_id)) {
+        continue;
+      }
+      const double z =
+          (rotation * reconstruction.GetPoint3D(p.point3D_id).xyz + image.tvec)
+              .z();
+      if (z > 0) depths.push_back(z);
+    }
+    double nearest = std::numeric_limits<double>::infinity();
+    for (size_t j = 0; j < ids.size(); ++j) {
+      if (j != k) nearest = std::min(nearest, (centres[j] - centres[k]).norm());
+    }
+    if (!depths.empty() && std::isfinite(nearest)) {
+      ratios.push_back(nearest / Median(std::move(depths)));
+    }
+  }
+  if (ratios.empty()) return std::numeric_limits<double>::quiet_NaN();
+  return Median(std::move(ratios));
 }
 
 }  // namespace watergs

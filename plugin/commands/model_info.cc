@@ -1,6 +1,7 @@
 // `watergs model_info`: the figures `colmap model_analyzer` prints, for a
 // sparse model folder or a workspace (.bin or .txt); with a reference model
 // of the same photos, how far its camera poses are from the reference's.
+#include <cstdio>
 #include <iostream>
 
 #include "plugin/command.h"
@@ -37,6 +38,12 @@ int RunModelInfo(int argc, char** argv) {
             << ")\n"
             << watergs::FormatModelSummary(
                    watergs::AnalyzeModel(reconstruction));
+  // Not a model_analyzer figure: how far neighbouring cameras sit apart.
+  char baseline[96];
+  std::snprintf(baseline, sizeof(baseline),
+                "Neighbour baseline / depth: median %.4f\n",
+                watergs::MedianNeighbourBaselineToDepth(reconstruction));
+  std::cout << baseline;
   if (!reference_path.empty()) {
     const bool npy = reference_path.size() > 4 &&
                      reference_path.substr(reference_path.size() - 4) == ".npy";
