@@ -72,7 +72,7 @@ for scene in "${scenes[@]}"; do
   rm -f "$out_dir/$scene/database.db"  # COLMAP's matching database: large and not needed for training
   match_downscaled_names "$out_dir/$scene"
   write_manifest "$out_dir/$scene"
-  check_colmap_scene "$out_dir/$scene"
+  check_colmap_scene "$out_dir/$scene" ${from_dir:+--photos_only_ok}
 done
 if [ -n "$from_dir" ]; then
   log "done: ${#scenes[@]} scene(s) in $out_dir (from $from_dir)"

@@ -132,12 +132,13 @@ match_downscaled_names() {
   done
 }
 
-# check_colmap_scene SCENE: the layout the watergs CLI expects, or a clear error.
+# check_colmap_scene SCENE [--photos_only_ok]: the layout the watergs CLI expects, or a clear
+# error; with --photos_only_ok (a local copy) a scene without sparse/0 is laid out with a warning.
 check_colmap_scene() {
-  local scene="$1" file
+  local scene="$1" photos_only_ok="${2:-}" file
   [ -d "$scene/images" ] || die "$scene/images is missing"
   local reconstruct="watergs reconstruct --image_path $scene/images --workspace_path ${scene}_reconstructed"
-  if [ ! -d "$scene/sparse/0" ]; then
+  if [ ! -d "$scene/sparse/0" ] && [ "$photos_only_ok" == --photos_only_ok ]; then
     # A copy of the photos alone (and poses_bounds.npy): the poses come from reconstruct.
     log "warning: $scene has no COLMAP model (sparse/0): reconstruct the poses with: $reconstruct"
     log "ready: $scene ($(count_images "$scene/images") images, no model)"

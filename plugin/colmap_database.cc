@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include "gaussian/util/error.h"
 
@@ -105,8 +106,9 @@ std::vector<DatabaseImage> ReadDatabaseImages(const std::string& path) {
   return sorted;
 }
 
-int ShareCameras(const std::string& path,
-                 const std::vector<std::vector<std::string>>& image_groups) {
+SharedCameras ShareCameras(
+    const std::string& path,
+    const std::vector<std::vector<std::string>>& image_groups) {
   const Database db = Open(path, SQLITE_OPEN_READWRITE);
   // A failure below closes the connection inside the transaction, which
   // SQLite rolls back: the database is changed whole or not at all.
@@ -121,32 +123,41 @@ int ShareCameras(const std::string& path,
   struct Camera {
     int64_t id, width, height;
   };
+  SharedCameras result;
   const auto find_camera = [&](const std::string& name) {
     sqlite3_reset(camera_of.get());
     sqlite3_bind_text(camera_of.get(), 1, name.c_str(), -1, SQLITE_TRANSIENT);
-    if (!NextRow(db.get(), camera_of.get(), path)) {
-      FailAt(path, "holds no image named " + name + " with a camera");
+    std::optional<Camera> camera;
+    if (NextRow(db.get(), camera_of.get(), path)) {
+      camera = Camera{sqlite3_column_int64(camera_of.get(), 0),
+                      sqlite3_column_int64(camera_of.get(), 1),
+                      sqlite3_column_int64(camera_of.get(), 2)};
+    } else {
+      result.missing.push_back(name);
     }
-    return Camera{sqlite3_column_int64(camera_of.get(), 0),
-                  sqlite3_column_int64(camera_of.get(), 1),
-                  sqlite3_column_int64(camera_of.get(), 2)};
+    sqlite3_reset(camera_of.get());
+    return camera;
   };
   for (const std::vector<std::string>& group : image_groups) {
-    if (group.size() < 2) continue;
-    const Camera shared = find_camera(group[0]);
-    for (size_t k = 1; k < group.size(); ++k) {
-      const Camera own = find_camera(group[k]);
-      if (own.width != shared.width || own.height != shared.height) {
-        FailAt(path, group[k] + "'s camera is " + std::to_string(own.width) +
-                         "x" + std::to_string(own.height) + ", " + group[0] +
-                         "'s " + std::to_string(shared.width) + "x" +
-                         std::to_string(shared.height) +
+    std::optional<Camera> shared;
+    std::string first;
+    for (const std::string& name : group) {
+      const std::optional<Camera> own = find_camera(name);
+      if (!own) continue;
+      if (!shared) {
+        shared = own, first = name;
+        continue;
+      }
+      if (own->width != shared->width || own->height != shared->height) {
+        FailAt(path, name + "'s camera is " + std::to_string(own->width) + "x" +
+                         std::to_string(own->height) + ", " + first + "'s " +
+                         std::to_string(shared->width) + "x" +
+                         std::to_string(shared->height) +
                          ": photos of two sizes cannot share a camera");
       }
       sqlite3_reset(assign.get());
-      sqlite3_bind_int64(assign.get(), 1, shared.id);
-      sqlite3_bind_text(assign.get(), 2, group[k].c_str(), -1,
-                        SQLITE_TRANSIENT);
+      sqlite3_bind_int64(assign.get(), 1, shared->id);
+      sqlite3_bind_text(assign.get(), 2, name.c_str(), -1, SQLITE_TRANSIENT);
       NextRow(db.get(), assign.get(), path);
     }
   }
@@ -155,12 +166,12 @@ int ShareCameras(const std::string& path,
           "(SELECT camera_id FROM images)");
   Statement count = Prepare(db.get(), path, "SELECT COUNT(*) FROM cameras");
   NextRow(db.get(), count.get(), path);
-  const int cameras = sqlite3_column_int(count.get(), 0);
+  result.num_cameras = sqlite3_column_int(count.get(), 0);
   camera_of.reset();
   assign.reset();
   count.reset();
   Execute(db.get(), path, "COMMIT");
-  return cameras;
+  return result;
 }
 
 }  // namespace watergs

@@ -22,12 +22,22 @@ struct DatabaseImage {
 // without COLMAP's tables, or descriptors that are not rows x 128 bytes.
 std::vector<DatabaseImage> ReadDatabaseImages(const std::string& path);
 
+// What ShareCameras did.
+struct SharedCameras {
+  // Cameras left in the database.
+  int num_cameras = 0;
+  // Names of a group the database does not hold (COLMAP's extractor skips a
+  // file it cannot read); left out of their group.
+  std::vector<std::string> missing;
+};
+
 // Gives every image named in a group the camera of the group's first image
-// and deletes the cameras no image uses any more, in one transaction; returns
-// the number of cameras left. Idempotent. The images of a group must have
-// cameras of one size (the caller groups by size). Error (one line naming the
-// file) for an image not in the database or cameras of different sizes.
-int ShareCameras(const std::string& path,
-                 const std::vector<std::vector<std::string>>& image_groups);
+// the database holds and deletes the cameras no image uses any more, in one
+// transaction. Idempotent. The images of a group must have cameras of one
+// size (the caller groups by size): error (one line naming the file, nothing
+// changed) for cameras of different sizes.
+SharedCameras ShareCameras(
+    const std::string& path,
+    const std::vector<std::vector<std::string>>& image_groups);
 
 }  // namespace watergs

@@ -133,8 +133,6 @@ std::vector<std::pair<int, int>> MatchedPairs(const std::string& matcher,
                                  : ExhaustivePairs(n);
 }
 
-// Whether every photo has the size of the first; Error naming an unreadable
-// one.
 // Every photo's size and EXIF camera; error (one line) for a photo that does
 // not decode.
 std::vector<PhotoDescription> DescribePhotos(
@@ -146,10 +144,14 @@ std::vector<PhotoDescription> DescribePhotos(
     const cv::Mat image = cv::imread(photos[k], cv::IMREAD_REDUCED_GRAYSCALE_8);
     if (image.empty()) FailAt(photos[k], "not a readable image");
     PhotoDescription& d = described[k];
-    if (!ReadImageHeaderSize(photos[k], &d.width, &d.height)) {
-      d.width = image.cols * 8, d.height = image.rows * 8;
+    if (ReadImageHeaderSize(photos[k], &d.width, &d.height)) {
+      d.exif = ReadExifCamera(photos[k]);
+    } else {
+      // Size not known exactly (the reduced decode rounds): a camera of
+      // its own, never shared.
+      d.width = image.cols * 8;
+      d.height = image.rows * 8;
     }
-    d.exif = ReadExifCamera(photos[k]);
   }
   return described;
 }
@@ -475,11 +477,18 @@ void ShareCamerasInDatabase(const fs::path& ws,
   if (cameras.num_groups <= 1) return;
   const auto groups = SharedCameraGroups(photos, cameras);
   if (groups.empty()) return;
-  const int left = ShareCameras((ws / "database.db").string(), groups);
+  const SharedCameras shared =
+      ShareCameras((ws / "database.db").string(), groups);
+  for (const std::string& name : shared.missing) {
+    std::printf(
+        "reconstruct: warning: %s is not in database.db (COLMAP's "
+        "extractor skipped it): left out of the cameras shared\n",
+        name.c_str());
+  }
   std::printf(
       "reconstruct: cameras: %d in database.db (photos of one EXIF "
       "camera and size share one)\n",
-      left);
+      shared.num_cameras);
   std::fflush(stdout);
 }
 
@@ -567,9 +576,9 @@ void RunReconstruction(const ReconstructOptions& o) {
     const fs::path marker = ws / ".reconstruct" / (stage.name + ".done");
     if (done[k]) {
       std::printf("reconstruct: %s done before, kept\n", stage.name.c_str());
-      // Idempotent; a workspace extracted before cameras were shared gets
-      // them before its matching.
-      if (stage.name == "features" && k + 1 < stages.size() && !done[k + 1]) {
+      // Idempotent: a workspace whose mapping is not done gets its cameras
+      // shared (again, or first when extracted before they were).
+      if (stage.name == "features" && !done.back()) {
         ShareCamerasInDatabase(ws, photos, cameras);
       }
       continue;
@@ -595,11 +604,12 @@ void RunReconstruction(const ReconstructOptions& o) {
   const double baseline = MedianNeighbourBaselineToDepth(reconstruction);
   if (baseline < kCollapsedBaselineToDepth) {
     std::printf(
-        "reconstruct: warning: neighbouring cameras sit %.2f%% of the scene's "
-        "depth apart (median; photos with parallax: 3-30%%): a model collapsed "
-        "onto few viewpoints, or photos taken from one spot. Check it with "
-        "`watergs model_info --reference_path` if known poses exist, or add "
-        "photos taken between these\n",
+        "reconstruct: warning: most photos sit at the pose of another "
+        "(nearest camera %.2f%% of the scene's depth away, median; photos "
+        "with parallax: 3-30%%): photos registered onto one another (a "
+        "symmetric scene), or taken from one spot (duplicates, a tripod, "
+        "dense video frames). Check the poses with `watergs model_info "
+        "--reference_path` where known ones exist\n",
         100 * baseline);
   }
   if (double(s.num_reg_images) < o.min_registered_fraction * photos.size()) {

@@ -1,3 +1,4 @@
+// EXIF cameras through libexif, and the grouping of photos by camera and size.
 #include "plugin/photo_cameras.h"
 
 #include <libexif/exif-data.h>
@@ -59,11 +60,6 @@ std::string ExifCamera::Label() const {
   return label;
 }
 
-bool ExifCamera::operator==(const ExifCamera& other) const {
-  return std::tie(make, model, focal_length_mm) ==
-         std::tie(other.make, other.model, other.focal_length_mm);
-}
-
 std::optional<ExifCamera> ReadExifCamera(const std::string& path) {
   std::unique_ptr<ExifData, UnrefExifData> data(
       exif_data_new_from_file(path.c_str()));
@@ -87,7 +83,8 @@ PhotoCameras GroupPhotosByCamera(const std::vector<PhotoDescription>& photos,
     const PhotoDescription& p = photos[k];
     cameras.one_size = cameras.one_size && p.width == photos[0].width &&
                        p.height == photos[0].height;
-    if (!p.exif) {
+    // Without a focal length a zoom's settings cannot be told apart.
+    if (!p.exif || p.exif->focal_length_mm <= 0) {
       ++cameras.num_without_exif;
       cameras.group[k] = -1;
       continue;

@@ -19,7 +19,6 @@ struct ExifCamera {
 
   // "Canon EOS 5D 24 mm" (make, model, focal length where known).
   std::string Label() const;
-  bool operator==(const ExifCamera& other) const;
 };
 
 // The EXIF camera of the photo at `path`; nullopt where the file records no
@@ -41,14 +40,15 @@ struct PhotoCameras {
   int num_exif_cameras = 0;
   int num_without_exif = 0;
   bool one_size = true;
-  // One line: "22 photos of Canon EOS 5D 24 mm 480x360, 2 of ...".
+  // One line: "22 of Canon EOS 5D 24 mm 480x360, 2 of ...".
   std::string summary;
 };
 
 // Photos in capture order of one size and at most one EXIF camera share one
-// camera (a walk or a video); otherwise photos of the same EXIF camera and
-// size share a camera and each photo without an EXIF camera gets its own (a
-// web collection's photos come from many cameras).
+// camera (a walk or a video); otherwise photos of the same EXIF camera (make,
+// model, focal length) and size share a camera and each photo without one
+// (no EXIF, or no focal length: a zoom's settings unknown) gets its own (a web
+// collection's photos come from many cameras).
 PhotoCameras GroupPhotosByCamera(const std::vector<PhotoDescription>& photos,
                                  bool in_capture_order);
 

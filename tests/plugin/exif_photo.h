@@ -4,10 +4,12 @@
 
 #include <libexif/exif-data.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace watergs::testing {
@@ -67,9 +69,9 @@ inline bool WriteJpegWithExif(const std::string& path, const cv::Mat& image,
   }
   if (!exif_block.empty()) {
     const size_t length = exif_block.size() + 2;
-    std::vector<unsigned char> segment = {0xFF, 0xE1,
-                                          (unsigned char)(length >> 8),
-                                          (unsigned char)(length & 0xFF)};
+    std::vector<unsigned char> segment = {
+        0xFF, 0xE1, static_cast<unsigned char>(length >> 8),
+        static_cast<unsigned char>(length & 0xFF)};
     segment.insert(segment.end(), exif_block.begin(), exif_block.end());
     jpeg.insert(jpeg.begin() + 2, segment.begin(), segment.end());
   }

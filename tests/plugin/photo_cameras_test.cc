@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
-#include <fstream>
+#include <map>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <set>
 
 #include "plugin/colmap_database.h"
@@ -60,7 +62,8 @@ TEST(ReadExifCamera, NoneFromPhotosThatNameNoCamera) {
   ASSERT_TRUE(cv::imwrite(png, SmallPhoto()));
   EXPECT_FALSE(ReadExifCamera(png).has_value());
   EXPECT_FALSE(ReadExifCamera((dir / "missing.jpg")).has_value());
-  // An EXIF block cut short and one of random bytes: no camera, no crash.
+  // An EXIF block cut short and one of random bytes: no camera, no crash
+  // (these fail only by crashing or by inventing the camera).
   std::vector<unsigned char> block =
       testing::ExifCameraBlock("Canon", "Canon EOS 5D", 24);
   block.resize(block.size() / 3);
@@ -137,14 +140,21 @@ TEST(GroupPhotosByCamera, ACollectionSharesByEXIFCameraAndGivesTheRestOneEach) {
   EXPECT_NE(web.summary.find("2 photo(s) without an EXIF camera"),
             std::string::npos)
       << web.summary;
+  // An EXIF camera without a focal length (a zoom's setting unknown): a
+  // camera each, as without EXIF.
+  const ExifCamera no_focal{"Canon", "Canon EOS 5D", 0};
+  EXPECT_EQ(
+      GroupPhotosByCamera({Photo(480, no_focal), Photo(480, no_focal)}, false)
+          .num_groups,
+      2);
   // No EXIF at all, in no order: a camera per photo.
   EXPECT_EQ(GroupPhotosByCamera({Photo(480), Photo(480), Photo(480)}, false)
                 .num_groups,
             3);
 }
 
-// A database with COLMAP's cameras and images tables: `sizes[k]` is image
-// k's own camera (k + 1), named "p<k>.jpg".
+// A database with COLMAP's cameras and images tables: image k, named
+// "p<k>.jpg", has its own camera k + 1, `widths[k]` x 90.
 void WriteCameraDatabase(const std::string& path,
                          const std::vector<int>& widths) {
   sqlite3* db = nullptr;
@@ -189,8 +199,10 @@ std::pair<std::map<std::string, int>, int> ReadCameras(
 TEST(ShareCameras, GroupsShareTheFirstsCameraAndTheRestAreDeleted) {
   TempDir dir("share_cameras");
   const std::string db = (dir / "database.db");
-  WriteCameraDatabase(db, {120, 120, 90, 120, 90});
-  EXPECT_EQ(ShareCameras(db, {{"p0.jpg", "p1.jpg", "p3.jpg"}, {"p2.jpg"}}), 3);
+  ASSERT_NO_FATAL_FAILURE(WriteCameraDatabase(db, {120, 120, 90, 120, 90}));
+  EXPECT_EQ(ShareCameras(db, {{"p0.jpg", "p1.jpg", "p3.jpg"}, {"p2.jpg"}})
+                .num_cameras,
+            3);
   auto [of, count] = ReadCameras(db);
   EXPECT_EQ(count, 3);
   EXPECT_EQ(of["p1.jpg"], 1);
@@ -198,14 +210,14 @@ TEST(ShareCameras, GroupsShareTheFirstsCameraAndTheRestAreDeleted) {
   EXPECT_EQ(of["p2.jpg"], 3);
   EXPECT_EQ(of["p4.jpg"], 5);
   // Again: nothing changes.
-  EXPECT_EQ(ShareCameras(db, {{"p0.jpg", "p1.jpg", "p3.jpg"}}), 3);
+  EXPECT_EQ(ShareCameras(db, {{"p0.jpg", "p1.jpg", "p3.jpg"}}).num_cameras, 3);
   EXPECT_EQ(ReadCameras(db).first, of);
 }
 
-TEST(ShareCameras, AnotherSizeOrAnUnknownNameFailsAndChangesNothing) {
+TEST(ShareCameras, AnotherSizeFailsAndChangesNothing) {
   TempDir dir("share_cameras_bad");
-  const std::string db = (dir / "database.db");
-  WriteCameraDatabase(db, {120, 120, 90});
+  const std::string db = dir / "database.db";
+  ASSERT_NO_FATAL_FAILURE(WriteCameraDatabase(db, {120, 120, 90}));
   const auto before = ReadCameras(db);
   try {
     ShareCameras(db, {{"p0.jpg", "p1.jpg", "p2.jpg"}});
@@ -218,10 +230,23 @@ TEST(ShareCameras, AnotherSizeOrAnUnknownNameFailsAndChangesNothing) {
   }
   // The first update (p1 onto p0's camera) was rolled back with the rest.
   EXPECT_EQ(ReadCameras(db), before);
-  EXPECT_THROW(ShareCameras(db, {{"p0.jpg", "nowhere.jpg"}}), std::exception);
-  EXPECT_EQ(ReadCameras(db), before);
   EXPECT_THROW(ShareCameras(dir / "missing.db", {{"a", "b"}}), std::exception);
   EXPECT_FALSE(std::filesystem::exists(dir / "missing.db"));
+}
+
+// COLMAP's extractor skips a file it cannot read: its name is reported and
+// left out, the rest of its group still shares a camera.
+TEST(ShareCameras, ANameNotInTheDatabaseIsLeftOut) {
+  TempDir dir("share_cameras_missing");
+  const std::string db = dir / "database.db";
+  ASSERT_NO_FATAL_FAILURE(WriteCameraDatabase(db, {120, 120, 120}));
+  const SharedCameras shared =
+      ShareCameras(db, {{"nowhere.jpg", "p0.jpg", "p2.jpg"}});
+  EXPECT_EQ(shared.missing, std::vector<std::string>{"nowhere.jpg"});
+  EXPECT_EQ(shared.num_cameras, 2);
+  auto [of, count] = ReadCameras(db);
+  EXPECT_EQ(of["p2.jpg"], 1);
+  EXPECT_EQ(of["p1.jpg"], 2);
 }
 
 }  // namespace

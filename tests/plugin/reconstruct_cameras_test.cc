@@ -3,8 +3,7 @@
 // to 75% (another camera, or a copy resized on its way): the plan must not
 // declare one camera, and the two must come out with a camera of their own
 // size, apart from the others'. A collection in no order whose EXIF names two
-// cameras: the photos of each share one, and the model is placed right where a
-// focal length per photo collapsed it.
+// cameras: the photos of each share one, and every photo is placed right.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -55,9 +54,7 @@ TEST(ReconstructCameras, PhotosOfAnotherSizeGetACameraOfTheirOwn) {
       RunCommand(WatergsBin() + " reconstruct --image_path " + photos.string() +
                  " --workspace_path " + (dir / "ws"));
   ASSERT_EQ(run.exit_code, 0) << run.output;
-  EXPECT_EQ(run.output.find("one camera (photos share one size)"),
-            std::string::npos)
-      << run.output;
+  EXPECT_EQ(run.output.find("one camera ("), std::string::npos) << run.output;
   const Reconstruction model = ReadReconstruction(dir / "ws/sparse/0");
   ASSERT_GE(model.RegImageIds().size(), 10u) << run.output;
   std::set<camera_t> full_size_cameras;
