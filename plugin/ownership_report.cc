@@ -23,6 +23,29 @@ std::string Printf(const char* format, Args... args) {
   return buffer;
 }
 
+// Height (chart units of 260) of a bar of 0 bits wrong: a sliver, so that a
+// view read all right still shows.
+constexpr double kZeroBarHeight = 1.5;
+
+// A shell command as <pre> text whose options ("--downscale") never wrap
+// inside: the browser breaks lines after a hyphen. The text copies as is.
+std::string CommandHtml(const std::string& command) {
+  std::string html;
+  size_t start = 0;
+  while (start < command.size()) {
+    const size_t space = command.find(' ', start);
+    const size_t end = space == std::string::npos ? command.size() : space;
+    const std::string word = command.substr(start, end - start);
+    html += word.rfind("--", 0) == 0
+                ? "<span class=\"opt\">" + HtmlEscape(word) + "</span>"
+                : HtmlEscape(word);
+    if (space == std::string::npos) break;
+    html += ' ';
+    start = space + 1;
+  }
+  return html;
+}
+
 // A metric for a table: "inf" for identical images, "n/a" when not computed.
 std::string Metric(const char* format, double value) {
   if (!std::isfinite(value)) return std::isinf(value) ? "inf" : "n/a";
@@ -190,18 +213,21 @@ std::string BerChart(const OwnershipReport& r) {
   for (size_t k = 0; k < n; ++k) {
     const double x0 = left + group * k + group / 2 - bar;
     const double v = ber(wm[k]);
+    // A view that reads every bit right stays visible: a sliver at the axis.
+    const double wm_height = std::max(y(0) - y(v), kZeroBarHeight);
     s << Printf(
         "<rect class=\"wm\" x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" "
         "height=\"%.1f\"><title>",
-        x0, y(v), bar, y(0) - y(v));
+        x0, y(0) - wm_height, bar, wm_height);
     s << HtmlEscape(wm[k].name) << ": watermarked " << wm[k].bit_errors
       << " of " << bits << " bits wrong</title></rect>\n";
     if (k < raw.size()) {
       const double u = ber(raw[k]);
+      const double raw_height = std::max(y(0) - y(u), kZeroBarHeight);
       s << Printf(
           "<rect class=\"raw\" x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" "
           "height=\"%.1f\"><title>",
-          x0 + bar, y(u), bar, y(0) - y(u));
+          x0 + bar, y(0) - raw_height, bar, raw_height);
       s << HtmlEscape(raw[k].name) << ": raw " << raw[k].bit_errors << " of "
         << bits << " bits wrong</title></rect>\n";
     }
@@ -300,6 +326,7 @@ table.facts th { width: 210px; background: none; }
 .mono, code, pre { font-family: "DejaVu Sans Mono", monospace; font-size: 13px; }
 pre { background: #1f2430; color: #e8eaf0; padding: 10px 12px; border-radius: 4px;
   white-space: pre-wrap; overflow-wrap: anywhere; margin: 4px 0 12px; }
+pre .opt { white-space: nowrap; }
 th, td.num, td.nowrap { white-space: nowrap; }
 .wide { overflow-x: auto; }
 #attacks { font-size: 13.5px; }
@@ -633,7 +660,7 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
       h << "<p>" << HtmlEscape(c.caption) << ".</p>\n";
     } else {
       h << "<p>" << HtmlEscape(c.caption) << ":</p>\n<pre>"
-        << HtmlEscape(c.command) << "</pre>\n";
+        << CommandHtml(c.command) << "</pre>\n";
     }
   }
   if (!r.row_commands.empty()) {
@@ -642,7 +669,7 @@ std::string OwnershipReportToHtml(const OwnershipReport& r) {
          ++k) {
       const RobustnessRow& row = ev.robustness[k];
       h << "<p>" << HtmlEscape(row.model) << ", " << HtmlEscape(row.attack)
-        << ":</p>\n<pre>" << HtmlEscape(r.row_commands[k]) << "</pre>\n";
+        << ":</p>\n<pre>" << CommandHtml(r.row_commands[k]) << "</pre>\n";
     }
     h << "</details>\n";
   }

@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <regex>
 #include <sstream>
 
 #include "gaussian/formats/ply_io.h"
@@ -163,6 +164,24 @@ TEST(ReportCli, ClaimAndEveryRowAreWhatTheListedCommandsPrint) {
   ASSERT_EQ(rows.size(), 7u);
   ASSERT_EQ(data["row_commands"].size(), rows.size());
   const std::string claim_command = data["commands"][1]["command"];
+  // Every bar of the chart shows, a view read all right too.
+  EXPECT_NE(html.find("<rect class=\"wm\""), std::string::npos);
+  EXPECT_EQ(html.find("height=\"0.0\""), std::string::npos);
+  // On the page the command's options do not wrap inside ("--" at a line's
+  // end, "decoder" on the next), and its text is the command's.
+  const size_t pre = html.find("<pre>", html.find("The claim alone"));
+  ASSERT_NE(pre, std::string::npos);
+  std::string shown = html.substr(pre + 5, html.find("</pre>", pre) - pre - 5);
+  EXPECT_NE(shown.find("<span class=\"opt\">--decoder</span>"),
+            std::string::npos)
+      << shown;
+  shown = std::regex_replace(shown, std::regex("<[^>]*>"), "");
+  shown = std::regex_replace(shown, std::regex("&#39;"), "'");
+  shown = std::regex_replace(shown, std::regex("&quot;"), "\"");
+  shown = std::regex_replace(shown, std::regex("&lt;"), "<");
+  shown = std::regex_replace(shown, std::regex("&gt;"), ">");
+  shown = std::regex_replace(shown, std::regex("&amp;"), "&");
+  EXPECT_EQ(shown, claim_command);
   const auto claim =
       RunListed(claim_command + " --json claim.json", dir.path());
   ASSERT_EQ(claim.exit_code, 0) << claim_command << "\n" << claim.output;
