@@ -28,6 +28,24 @@ using testing::RunCommand;
 using testing::TempDir;
 using testing::WatergsBin;
 
+const fs::path kDemo =
+    fs::path(WATERGS_SOURCE_DIR) / "datasets_scripts/demo_scene";
+
+std::string ViewName(int k) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "view_%03d.jpg", k);
+  return name;
+}
+
+// The demo's photo `k`, shrunk to 75% (360x270) when `shrink`.
+cv::Mat DemoPhoto(int k, bool shrink) {
+  cv::Mat image = cv::imread((kDemo / "images" / ViewName(k)).string());
+  if (shrink && !image.empty()) {
+    cv::resize(image, image, cv::Size(360, 270), 0, 0, cv::INTER_AREA);
+  }
+  return image;
+}
+
 TEST(ReconstructCameras, PhotosOfAnotherSizeGetACameraOfTheirOwn) {
   ASSERT_EQ(RunCommand("colmap -h > /dev/null").exit_code, 0)
       << "colmap 3.8 must be on PATH (scripts/install_deps.sh --tests)";
@@ -36,17 +54,13 @@ TEST(ReconstructCameras, PhotosOfAnotherSizeGetACameraOfTheirOwn) {
   fs::create_directories(photos);
   const std::set<std::string> shrunk = {"view_003.jpg", "view_008.jpg"};
   for (int k = 0; k < 12; ++k) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "view_%03d.jpg", k);
-    const fs::path source = fs::path(WATERGS_SOURCE_DIR) /
-                            "datasets_scripts/demo_scene/images" / name;
+    const std::string name = ViewName(k);
     if (!shrunk.count(name)) {
-      fs::copy_file(source, photos / name);
+      fs::copy_file(kDemo / "images" / name, photos / name);
       continue;
     }
-    cv::Mat image = cv::imread(source.string());
-    ASSERT_FALSE(image.empty()) << source;
-    cv::resize(image, image, cv::Size(360, 270), 0, 0, cv::INTER_AREA);
+    const cv::Mat image = DemoPhoto(k, true);
+    ASSERT_FALSE(image.empty()) << name;
     ASSERT_TRUE(cv::imwrite((photos / name).string(), image,
                             {cv::IMWRITE_JPEG_QUALITY, 95}));
   }
@@ -91,8 +105,6 @@ TEST(ReconstructCameras, ACollectionsPhotosOfOneEXIFCameraShareACamera) {
   TempDir dir("reconstruct_exif_cameras");
   const fs::path photos = dir / "photos";
   fs::create_directories(photos);
-  const fs::path demo =
-      fs::path(WATERGS_SOURCE_DIR) / "datasets_scripts/demo_scene";
   const std::vector<std::string> words = {
       "ash",    "birch", "cedar", "dogwood",  "elm",    "fir",
       "ginkgo", "hazel", "ivy",   "juniper",  "kapok",  "larch",
@@ -104,25 +116,20 @@ TEST(ReconstructCameras, ACollectionsPhotosOfOneEXIFCameraShareACamera) {
   std::map<std::string, std::string> renamed;  // view_NNN.jpg -> word.jpg
   for (int n = 0; n < 24; ++n) {
     const int k = n < 12 ? n : n + 12;
-    char view[32];
-    std::snprintf(view, sizeof(view), "view_%03d.jpg", k);
     // Every 7th word: the names' order is not the capture's.
     const std::string name = words[(n * 7) % 24] + ".jpg";
-    renamed[view] = name;
-    cv::Mat image = cv::imread((demo / "images" / view).string());
-    ASSERT_FALSE(image.empty()) << view;
-    if (shrunk.count(k)) {
-      cv::resize(image, image, cv::Size(360, 270), 0, 0, cv::INTER_AREA);
-    }
+    renamed[ViewName(k)] = name;
+    const cv::Mat image = DemoPhoto(k, shrunk.count(k));
+    ASSERT_FALSE(image.empty()) << ViewName(k);
     ASSERT_TRUE(testing::WriteJpegWithExif((photos / name).string(), image,
                                            shrunk.count(k) ? phone : canon));
   }
   // The ground truth under the new names (images.txt's last field).
   const fs::path truth = dir / "truth";
   fs::create_directories(truth);
-  fs::copy_file(demo / "ground_truth/cameras.txt", truth / "cameras.txt");
-  fs::copy_file(demo / "ground_truth/points3D.txt", truth / "points3D.txt");
-  std::ifstream in(demo / "ground_truth/images.txt");
+  fs::copy_file(kDemo / "ground_truth/cameras.txt", truth / "cameras.txt");
+  fs::copy_file(kDemo / "ground_truth/points3D.txt", truth / "points3D.txt");
+  std::ifstream in(kDemo / "ground_truth/images.txt");
   std::ofstream out(truth / "images.txt");
   const std::regex view_name(R"(view_\d{3}\.jpg$)");
   for (std::string line; std::getline(in, line);) {
