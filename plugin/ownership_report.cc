@@ -25,7 +25,7 @@ std::string Printf(const char* format, Args... args) {
 
 // Height (chart units of 260) of a bar of 0 bits wrong: a sliver, so that a
 // view read all right still shows.
-constexpr double kZeroBarHeight = 1.5;
+constexpr double kZeroBarHeight = 3;
 
 // A shell command as <pre> text whose options ("--downscale") never wrap
 // inside: the browser breaks lines after a hyphen. The text copies as is.
