@@ -175,7 +175,10 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
                                 options_.seed ^ 0x5851f42d4c957f2dull));
   }
   targets_.assign(message_.begin(), message_.end());
-  if (!options_.distortions.empty()) {
+  if (options_.choose_distortions) {
+    choice_ = std::make_unique<DistortionChoice>(options_.distortions);
+    sampler_ = std::make_unique<DistortionSampler>(choice_->Simulated());
+  } else if (!options_.distortions.empty()) {
     sampler_ = std::make_unique<DistortionSampler>(options_.distortions);
   }
   // Density control sets every group of the Gaussians it adds (and prunes
@@ -241,6 +244,10 @@ std::string Embedder::RunSignature() const {
   std::string layers;
   for (const auto& spec : options_.distortions) layers += ToString(spec) + ",";
   j["distortions"] = layers;
+  if (options_.choose_distortions) {
+    // Reviewed at each check: the period is part of the run.
+    j["choose_distortions"] = options_.check_every;
+  }
   j["crop_size"] = options_.crop_size;
   if (options_.free_view_fraction > 0)
     j["free_view_fraction"] = options_.free_view_fraction;
@@ -645,6 +652,65 @@ void Embedder::ScorePool() {
   }
 }
 
+std::vector<std::vector<float>> Embedder::ReadCameras(
+    const GaussianModel* model, const std::vector<RenderCamera>& cameras,
+    const std::vector<std::vector<float>>& reference) {
+  std::vector<std::vector<float>> logits(cameras.size());
+  ImageRGB image;
+  RenderOptions render_options;
+  render_options.background = options_.background;
+  for (size_t k = 0; k < cameras.size(); ++k) {
+    if (model) {
+      rasterizer_->Forward(*model, cameras[k], render_options, &image, nullptr);
+      for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+    } else {
+      RenderCurrent(cameras[k], &image);
+    }
+    logits[k] = decoder_->Logits(image);
+    if (options_.owner_reading) {
+      SubtractReference(reference[k], message_, &logits[k]);
+    }
+  }
+  return logits;
+}
+
+bool Embedder::ReviewDistortions() {
+  std::vector<RenderCamera> cameras;
+  for (size_t view : options_.check_views) {
+    cameras.push_back(views_.Camera(view));
+  }
+  cameras.insert(cameras.end(), options_.check_free_views.begin(),
+                 options_.check_free_views.end());
+  std::vector<std::vector<float>> reference;
+  if (options_.owner_reading) {
+    for (const RenderCamera& camera : cameras) {
+      reference.push_back(decoder_->Logits(*RenderInput(camera)));
+    }
+  }
+  const std::vector<std::vector<float>> plain =
+      ReadCameras(nullptr, cameras, reference);
+  if (!DistortionChoice::Ready(plain, options_.check_views.size(), message_,
+                               options_.margin)) {
+    return false;
+  }
+  const GaussianModel& current = model();
+  bool turned_on = false;
+  for (size_t k = 0; k < choice_->candidates().size(); ++k) {
+    // One draw per review, from the seed, the iteration and the candidate
+    // (the iterations' own random stream stays untouched).
+    std::seed_seq seq{options_.seed, uint64_t(iteration_), uint64_t(k)};
+    std::mt19937_64 rng(seq);
+    MakeDistortionLayer(choice_->candidates()[k].spec)
+        ->Apply(current, rng, &distorted_, &source_);
+    turned_on |= choice_->Review(k, iteration_, message_, plain,
+                                 ReadCameras(&distorted_, cameras, reference));
+  }
+  if (turned_on) {
+    sampler_ = std::make_unique<DistortionSampler>(choice_->Simulated());
+  }
+  return turned_on;
+}
+
 double Embedder::DecodeViews(
     const std::vector<RenderCamera>& cameras,
     const std::vector<std::shared_ptr<const ImageRGB>>* truths,
@@ -714,6 +780,12 @@ bool Embedder::Run() {
               : 0;
       read_past_margin = options_.stop_margin > 0 &&
                          last_check.weakest_margin >= options_.stop_margin;
+      // A layer turned on now has iterations to come before any stop.
+      if (choice_ && ReviewDistortions()) {
+        zero_ber_checks_ = 0;
+        read_past_margin = false;
+        if (bar) bar->Print("embed: distortion layers " + choice_->Summary());
+      }
     }
     if (options_.checkpoint_every > 0 && it % options_.checkpoint_every == 0 &&
         !options_.checkpoint_path.empty()) {
@@ -786,6 +858,7 @@ void Embedder::SaveCheckpoint(const std::string& path) const {
   extra["origin"] = origin_;
   extra["zero_ber_checks"] = zero_ber_checks_;
   if (pool_) extra["pool_deficits"] = pool_->deficits();
+  if (choice_) extra["distortions_since"] = choice_->State();
   c.rng_state = extra.dump();
   c.run_signature = RunSignature();
   WriteCheckpoint(path, c);
@@ -843,6 +916,19 @@ void Embedder::Resume(const std::string& path) {
     if (!pool_->RestoreDeficits(deficits)) {
       FailAt(path, "checkpoint's hard-viewpoint pool does not match the run");
     }
+  }
+  if (choice_) {
+    std::vector<int64_t> since;
+    try {
+      since = extra.value("distortions_since", std::vector<int64_t>{});
+    } catch (const nlohmann::json::exception&) {
+      FailAt(path, "checkpoint embed state has fields of the wrong type");
+    }
+    if (!choice_->Restore(since)) {
+      FailAt(path,
+             "checkpoint's chosen distortion layers do not match the run");
+    }
+    sampler_ = std::make_unique<DistortionSampler>(choice_->Simulated());
   }
   if (!rng_in || origin_.size() != model_.size()) {
     FailAt(path, "checkpoint state is corrupt");

@@ -25,6 +25,7 @@
 #include "watermark/bit_decoder.h"
 #include "watermark/decoder.h"
 #include "watermark/device_embedding_step.h"
+#include "watermark/distortion_choice.h"
 #include "watermark/message.h"
 #include "watermark/message_loss.h"
 #include "watermark/view_jitter.h"
@@ -49,6 +50,11 @@ struct EmbedOptions {
                                                  true, true, true};
   // Distortion layers sampled per iteration; empty = none (plain render).
   std::vector<DistortionSpec> distortions;
+  // Chosen per scene: `distortions` are then candidates, none simulated at
+  // first; at each check where every check view reads, each candidate is
+  // reviewed on the check cameras and simulated from then on if it breaks a
+  // bit the plain render reads (distortion_choice.h).
+  bool choose_distortions = false;
   // Side of the random square crop rendered per iteration (clamped to the
   // frame); 0 renders whole frames.
   int crop_size = 128;
@@ -212,6 +218,8 @@ class Embedder {
   // For each Gaussian now, the index of the input Gaussian it descends from.
   const std::vector<int64_t>& origin() const { return origin_; }
   int64_t iteration() const { return iteration_; }
+  // The per-scene choice of layers (null unless choose_distortions).
+  const DistortionChoice* distortion_choice() const { return choice_.get(); }
   // Sum of per-stage seconds over all iterations so far.
   const EmbedTimings& total_timings() const { return total_timings_; }
   Rasterizer& rasterizer() { return *rasterizer_; }
@@ -266,6 +274,15 @@ class Embedder {
   std::shared_ptr<const std::vector<float>> PoolReferenceLogits(size_t k);
   // Decodes every pool view and records how far each falls short.
   void ScorePool();
+  // The decoder's logits (in the optimised reading) of whole-frame renders
+  // of `model` (null: the model being embedded) from `cameras`; `reference`
+  // holds the input model's logits there for the owner's reading.
+  std::vector<std::vector<float>> ReadCameras(
+      const GaussianModel* model, const std::vector<RenderCamera>& cameras,
+      const std::vector<std::vector<float>>& reference);
+  // Reviews each candidate layer on the check cameras (choose_distortions);
+  // true when one was turned on now.
+  bool ReviewDistortions();
   // The input model's render from `camera`, clamped to [0, 1].
   std::shared_ptr<const ImageRGB> RenderInput(const RenderCamera& camera);
   // The input model's render from a training view (cached).
@@ -318,6 +335,7 @@ class Embedder {
   std::vector<float> targets_;
   std::unique_ptr<Rasterizer> rasterizer_;
   std::unique_ptr<DistortionSampler> sampler_;
+  std::unique_ptr<DistortionChoice> choice_;
   std::unique_ptr<DensityStrategy> strategy_;
   // Density options with the run's seed (the strategy's).
   DensityOptions density_options_;

@@ -40,6 +40,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// The paper's layers at its strengths, reviewed by --distortions auto.
+constexpr char kCandidateDistortions[] = "gn:0.01,dropout:0.1,crop:0.1";
+
 struct EmbedArgs {
   std::string input_path, output_path, decoder_path, message, report_path;
   std::string key_option;
@@ -299,7 +302,11 @@ int RunEmbed(int argc, char** argv) {
              "ALL or trainable groups: xyz,f_dc,f_rest,opacity,scaling,"
              "rotation (a partial mask needs density control off)");
   parser.Add("distortions", &a.distortions,
-             "3D distortion layers sampled per iteration, or none");
+             "3D distortion layers sampled per iteration, or none, or auto "
+             "(chosen per scene: each of " +
+                 std::string(kCandidateDistortions) +
+                 " is simulated once a check finds it breaks a bit the plain "
+                 "render reads), or auto:LIST (those candidates)");
   parser.Add("crop_size", &a.crop_size,
              "Side of the random crop rendered per iteration (0 = frames)");
   parser.AddFlag("full_frame_loss", &a.full_frame_loss,
@@ -399,7 +406,17 @@ int RunEmbed(int argc, char** argv) {
   options.beta = a.beta;
   ScaleRates(a.lr_scale, &options.adam);
   options.trainable = ParseParamMask(a.mask);
-  if (a.distortions != "none") {
+  if (a.distortions == "auto" || a.distortions.rfind("auto:", 0) == 0) {
+    if (a.check_views < 1) {
+      Fail(
+          "--distortions auto reviews the layers on the check views: give "
+          "--check_views >= 1");
+    }
+    options.choose_distortions = true;
+    options.distortions =
+        ParseDistortionList(a.distortions == "auto" ? kCandidateDistortions
+                                                    : a.distortions.substr(5));
+  } else if (a.distortions != "none") {
     options.distortions = ParseDistortionList(a.distortions);
   }
   options.crop_size = a.crop_size;
@@ -517,6 +534,9 @@ int RunEmbed(int argc, char** argv) {
       "vs raw %.2f dB\n",
       options.check_views.size(), 100 * before.mean_ber, 100 * after.mean_ber,
       100 * after.aggregate_ber, before.psnr, after.psnr, psnr_vs_raw);
+  if (const DistortionChoice* choice = embedder.distortion_choice()) {
+    std::printf("embed: distortion layers %s\n", choice->Summary().c_str());
+  }
   PrintTimings(embedder);
   if (a.crop_size > 0 && !a.full_frame_loss) {
     auto rasterizer = MakeRasterizer(parser.device());

@@ -90,6 +90,23 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
   EXPECT_EQ(m.model.sh_rest, in.model.sh_rest);
   EXPECT_NE(m.model.sh_dc, in.model.sh_dc);
 
+  // Layers chosen per scene: the closing line says what became of each
+  // candidate.
+  const auto chosen = RunCommand(
+      base + " --message hex:a5c3 --output_path " +
+      std::string(dir / "wm_auto.ply") +
+      " --iterations 4 --check_every 2 --check_views 2 --num_threads 1 "
+      "--distortions auto:dropout:0.2,crop:0.1");
+  ASSERT_EQ(chosen.exit_code, 0) << chosen.output;
+  EXPECT_NE(chosen.output.find("distortions auto:dropout:0.2,crop:0.1"),
+            std::string::npos)
+      << chosen.output;
+  EXPECT_NE(chosen.output.find("embed: distortion layers dropout:0.2 "),
+            std::string::npos)
+      << chosen.output;
+  EXPECT_NE(chosen.output.find("; crop:0.1 "), std::string::npos)
+      << chosen.output;
+
   // Extraction: a verdict (any) is exit 0, with the JSON written.
   const std::string json = dir / "extract.json";
   const auto extract = RunCommand(
@@ -136,6 +153,17 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
                  "--output_path " +
                  bad_out),
       "--hard_views replays free-view iterations");
+  ExpectOneLineError(
+      RunCommand(base +
+                 " --message hex:a5c3 --distortions auto --check_views 0 "
+                 "--output_path " +
+                 bad_out),
+      "--distortions auto reviews the layers on the check views");
+  ExpectOneLineError(RunCommand(base +
+                                " --message hex:a5c3 --distortions auto:blur:2 "
+                                "--output_path " +
+                                bad_out),
+                     "blur");
   ExpectOneLineError(RunCommand(WatergsBin() + " extract --input_path " + wm +
                                 " --workspace_path " + ws + " --decoder " +
                                 decoder + " --message bits:00110011001100110"),

@@ -552,6 +552,83 @@ TEST(Embedder, IdentityOnlyRunEqualsARunWithoutLayers) {
   EXPECT_NE(plain.model().sh_dc, s.model.sh_dc);
 }
 
+// embed --distortions auto, on a message the input already carries at the
+// check view: a candidate that breaks bits (dropout of almost every
+// Gaussian) is simulated from the first check, one that cannot (noise of
+// sigma 0) never is; only the iterations after the check render distorted
+// copies; a run resumed after the choice continues as an uninterrupted one.
+TEST(Embedder, SimulatesOnlyTheDistortionLayersTheCheckViewsAreShortOf) {
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  Decoder decoder(&net);
+  auto cpu = MakeCpuRasterizer();
+  ImageRGB render;
+  cpu->Forward(s.model, s.views.Camera(s.train[0]), {}, &render, nullptr);
+  for (float& x : render.data) x = std::clamp(x, 0.f, 1.f);
+  const std::vector<float> logits = decoder.Logits(render);
+  Bits message(logits.size());
+  for (size_t i = 0; i < logits.size(); ++i) message[i] = logits[i] > 0;
+  EmbedOptions o = ShortEmbedOptions();
+  o.distortions = ParseDistortionList("gn:0,dropout:0.95");
+  o.choose_distortions = true;
+  o.check_views = {s.train[0]};
+  o.check_every = 10;
+  o.margin = 0;
+  auto recorder = std::make_unique<ModelRecorder>();
+  const ModelRecorder& passes = *recorder;
+  Embedder run(o, s.views, s.train, s.model, 3.0, &decoder, message,
+               std::move(recorder));
+  run.Run();
+  const DistortionChoice& choice = *run.distortion_choice();
+  ASSERT_EQ(choice.candidates().size(), 2u);
+  EXPECT_FALSE(choice.candidates()[0].simulated());
+  EXPECT_EQ(choice.candidates()[0].broken_bits, 0);
+  EXPECT_EQ(choice.candidates()[0].reviewed_at, 40);
+  // At a check (every 10 iterations) before the last.
+  const int64_t since = choice.candidates()[1].since;
+  ASSERT_TRUE(since == 10 || since == 20 || since == 30) << since;
+  EXPECT_GT(choice.candidates()[1].broken_bits, 0);
+  ASSERT_EQ(passes.backward_models.size(), 40u);
+  const GaussianModel* own = &run.model();
+  int distorted = 0;
+  for (int64_t i = 0; i < 40; ++i) {
+    const bool plain = passes.backward_models[i] == own;
+    if (i < since) {
+      EXPECT_TRUE(plain) << "iteration " << i + 1;
+    }
+    distorted += !plain;
+  }
+  EXPECT_GT(distorted, 0);
+  // Resumed: stopped by patience at the check after the choice, resumed
+  // without it.
+  const std::string path = ::testing::TempDir() + "embedder_choice.ckpt";
+  EmbedOptions stopping = o;
+  stopping.patience = 1;
+  Embedder first(stopping, s.views, s.train, s.model, 3.0, &decoder, message,
+                 MakeCpuRasterizer());
+  ASSERT_TRUE(first.Run());
+  ASSERT_GT(first.iteration(), since);
+  ASSERT_LT(first.iteration(), 40);
+  first.SaveCheckpoint(path);
+  Embedder full(o, s.views, s.train, s.model, 3.0, &decoder, message,
+                MakeCpuRasterizer());
+  full.Run();
+  Embedder resumed(o, s.views, s.train, s.model, 3.0, &decoder, message,
+                   MakeCpuRasterizer());
+  resumed.Resume(path);
+  EXPECT_EQ(resumed.distortion_choice()->candidates()[1].since, since);
+  resumed.Run();
+  ExpectBitIdenticalModels(resumed.model(), full.model());
+  // A run with fixed layers refuses the checkpoint.
+  EmbedOptions fixed = o;
+  fixed.choose_distortions = false;
+  Embedder other(fixed, s.views, s.train, s.model, 3.0, &decoder, message,
+                 MakeCpuRasterizer());
+  EXPECT_THROW(other.Resume(path), Error);
+  std::remove(path.c_str());
+}
+
 TEST(Embedder, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   Scene s = MakeScene(2, 24, 20);
   HiddenModel net(TinyDecoderConfig(8), false, 3);

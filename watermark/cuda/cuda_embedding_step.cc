@@ -76,7 +76,7 @@ void CudaEmbeddingStep::LoadDensityState(const std::string& state) {
 
 CudaDistortionLayer& CudaEmbeddingStep::DeviceLayer(
     const DistortionLayer& layer) {
-  std::unique_ptr<CudaDistortionLayer>& twin = layers_[&layer];
+  std::unique_ptr<CudaDistortionLayer>& twin = layers_[ToString(layer.spec())];
   if (!twin) twin = std::make_unique<CudaDistortionLayer>(layer.spec());
   return *twin;
 }

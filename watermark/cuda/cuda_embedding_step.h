@@ -91,8 +91,10 @@ class CudaEmbeddingStep : public DeviceEmbeddingStep {
   double margin_;  // see MessageBce
   double mse_weight_;
   std::vector<float> targets_;
-  std::map<const DistortionLayer*, std::unique_ptr<CudaDistortionLayer>>
-      layers_;
+  // A device twin per layer spec (ToString): keyed by spec, not by the host
+  // layer's address, which a sampler rebuilt mid-run (embed --distortions
+  // auto) may hand to another layer.
+  std::map<std::string, std::unique_ptr<CudaDistortionLayer>> layers_;
   // The distorted model of this iteration and each row's source row.
   DeviceGaussianArrays distorted_;
   DeviceBuffer<uint32_t> source_;

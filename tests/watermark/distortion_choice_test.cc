@@ -1,0 +1,120 @@
+// Tests of the per-scene choice of distortion layers: when reviews may
+// judge, which bits count as broken, when a layer turns on, and its state.
+#include "watermark/distortion_choice.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "gaussian/util/error.h"
+
+namespace watergs {
+namespace {
+
+std::vector<DistortionSpec> Candidates() {
+  return ParseDistortionList("identity,gn:0.01,dropout:0.1,crop:0.1");
+}
+
+TEST(DistortionChoice, StartsWithThePlainRenderOnlyAndDropsTheIdentity) {
+  DistortionChoice choice(Candidates());
+  ASSERT_EQ(choice.candidates().size(), 3u);
+  EXPECT_EQ(ToString(choice.candidates()[0].spec), "gn:0.01");
+  const std::vector<DistortionSpec> simulated = choice.Simulated();
+  ASSERT_EQ(simulated.size(), 1u);
+  EXPECT_EQ(simulated[0].kind, DistortionKind::kIdentity);
+}
+
+// Ready: every bit of the check views (the first num_views cameras) reads
+// past the margin; the free viewpoints after them do not count.
+TEST(DistortionChoice, ReviewsWaitUntilEveryCheckViewReadsPastTheMargin) {
+  const Bits message = {1, 0, 1};
+  const std::vector<std::vector<float>> reads = {{2, -1, 0.5f}, {1, -3, 4}};
+  EXPECT_TRUE(DistortionChoice::Ready(reads, 2, message, 0));
+  EXPECT_TRUE(DistortionChoice::Ready(reads, 2, message, 0.5));
+  EXPECT_FALSE(DistortionChoice::Ready(reads, 2, message, 0.6));
+  std::vector<std::vector<float>> one_wrong = reads;
+  one_wrong[1][1] = 0.2f;  // Bit 0 read as 1.
+  EXPECT_FALSE(DistortionChoice::Ready(one_wrong, 2, message, 0));
+  EXPECT_TRUE(DistortionChoice::Ready(one_wrong, 1, message, 0));
+  EXPECT_FALSE(DistortionChoice::Ready(reads, 0, message, 0));
+  EXPECT_FALSE(DistortionChoice::Ready(reads, 3, message, 0));
+  // A zero logit reads bit 0 (as the decoder reads) but is no margin.
+  EXPECT_TRUE(DistortionChoice::Ready({{1, 0, 1}}, 1, message, 0));
+  EXPECT_FALSE(DistortionChoice::Ready({{1, 0, 1}}, 1, message, 0.01));
+}
+
+// More than kBrokenShare of the read bits: with 200 read, 2 broken is 1%
+// (kept off), 3 is over it.
+TEST(DistortionChoice, ABitOrTwoBrokenInAHundredIsLeftToAggregation) {
+  const Bits message(100, 1);
+  const std::vector<std::vector<float>> plain(2, std::vector<float>(100, 1.f));
+  std::vector<std::vector<float>> through = plain;
+  through[0][3] = through[1][7] = -0.5f;
+  DistortionChoice choice(Candidates());
+  EXPECT_FALSE(choice.Review(0, 250, message, plain, through));
+  EXPECT_EQ(choice.candidates()[0].broken_bits, 2);
+  EXPECT_EQ(choice.candidates()[0].read_bits, 200);
+  through[1][8] = -0.5f;
+  EXPECT_TRUE(choice.Review(0, 500, message, plain, through));
+  EXPECT_EQ(choice.candidates()[0].since, 500);
+}
+
+// Broken: read by the plain render and wrong through the layer. A bit the
+// plain render already misses does not count against the layer.
+TEST(DistortionChoice, ALayerTurnsOnWhenItBreaksABitThePlainRenderReads) {
+  const Bits message = {1, 0};
+  const std::vector<std::vector<float>> plain = {{2, -1}, {1, 0.5f}};
+  DistortionChoice choice(Candidates());
+  // View 1's bit 1 is wrong plainly and through the layer: nothing broken.
+  EXPECT_FALSE(choice.Review(1, 250, message, plain, {{1, -0.5f}, {1, 2}}));
+  EXPECT_EQ(choice.candidates()[1].broken_bits, 0);
+  EXPECT_FALSE(choice.candidates()[1].simulated());
+  EXPECT_DOUBLE_EQ(choice.candidates()[1].weakest, -2.0);
+  EXPECT_EQ(choice.Simulated().size(), 1u);
+  // View 0's bit 0 flips: broken, turned on at this iteration.
+  EXPECT_TRUE(choice.Review(1, 500, message, plain, {{-0.1f, -1}, {1, 2}}));
+  EXPECT_EQ(choice.candidates()[1].broken_bits, 1);
+  EXPECT_EQ(choice.candidates()[1].since, 500);
+  ASSERT_EQ(choice.Simulated().size(), 2u);
+  EXPECT_EQ(ToString(choice.Simulated()[1]), "dropout:0.1");
+  // Later reviews record figures but do not turn it on again.
+  EXPECT_FALSE(choice.Review(1, 750, message, plain, {{-1, 1}, {1, 2}}));
+  EXPECT_EQ(choice.candidates()[1].broken_bits, 2);
+  EXPECT_EQ(choice.candidates()[1].since, 500);
+  EXPECT_EQ(choice.candidates()[1].reviewed_at, 750);
+  EXPECT_THROW(choice.Review(3, 750, message, plain, plain), Error);
+  EXPECT_THROW(choice.Review(0, 750, message, plain, {{2, -1}}), Error);
+}
+
+TEST(DistortionChoice, SummaryNamesEachCandidatesOutcome) {
+  const Bits message = {1};
+  DistortionChoice choice(Candidates());
+  choice.Review(0, 250, message, {{3}}, {{2.5f}});
+  choice.Review(1, 250, message, {{3}}, {{-0.25f}});
+  const std::string summary = choice.Summary();
+  EXPECT_NE(summary.find("gn:0.01 not needed (at iteration 250 through it: 0 "
+                         "of 1 read bits broken, weakest +2.50)"),
+            std::string::npos)
+      << summary;
+  EXPECT_NE(summary.find("dropout:0.1 from iteration 250"), std::string::npos)
+      << summary;
+  EXPECT_NE(summary.find("crop:0.1 not reviewed"), std::string::npos)
+      << summary;
+}
+
+TEST(DistortionChoice, StateRestoresAndRefusesAnotherRunsState) {
+  DistortionChoice choice(Candidates());
+  choice.Review(2, 750, {1}, {{1}}, {{-1}});
+  const std::vector<int64_t> state = choice.State();
+  EXPECT_EQ(state, (std::vector<int64_t>{-1, -1, 750}));
+  DistortionChoice restored(Candidates());
+  ASSERT_TRUE(restored.Restore(state));
+  ASSERT_EQ(restored.Simulated().size(), 2u);
+  EXPECT_EQ(ToString(restored.Simulated()[1]), "crop:0.1");
+  EXPECT_FALSE(restored.Restore({-1, 750}));
+  EXPECT_FALSE(restored.Restore({-1, -2, 750}));
+  EXPECT_EQ(restored.State(), state);  // A refusal changes nothing.
+}
+
+}  // namespace
+}  // namespace watergs

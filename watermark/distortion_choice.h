@@ -1,0 +1,76 @@
+// Which 3D distortion layers an embedding simulates, chosen per scene
+// (embed --distortions auto). Each layer costs fidelity on every scene
+// (1.1-1.8 dB from the raw renders, docs/history.md) but buys robustness
+// only where the scene's reading is short of it: the embedding starts with
+// the plain render and, at each check once every bit of the check views
+// reads past the message term's margin (the plain embedding has done its
+// work there), renders the check cameras (views and free viewpoints)
+// through one draw of each candidate layer; a candidate that breaks more
+// than kBrokenShare of the bits the plain render reads is simulated from
+// then on. A bit or two broken is left to the views' aggregation.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "distortion/distortion_layer.h"
+#include "watermark/message.h"
+
+namespace watergs {
+
+// One candidate layer and what its reviews found.
+// Share of the plainly read bits a layer may break without being simulated.
+constexpr double kBrokenShare = 0.01;
+
+struct DistortionCandidate {
+  DistortionSpec spec;
+  // Iteration of the review that turned it on; -1 while it is off.
+  int64_t since = -1;
+  // At the latest review: bits (over every check camera) read by the plain
+  // render and lost through the layer, and the weakest signed logit through
+  // it (negative when some bit reads wrong).
+  int broken_bits = 0, read_bits = 0;
+  double weakest = std::numeric_limits<double>::infinity();
+  int64_t reviewed_at = -1;
+  bool simulated() const { return since >= 0; }
+};
+
+class DistortionChoice {
+ public:
+  // The identity in `candidates` is dropped: the plain render always stays.
+  explicit DistortionChoice(const std::vector<DistortionSpec>& candidates);
+
+  // The layers to sample now: the identity, then each candidate turned on.
+  std::vector<DistortionSpec> Simulated() const;
+  const std::vector<DistortionCandidate>& candidates() const {
+    return candidates_;
+  }
+
+  // Whether reviews can judge the layers yet: every bit of every one of the
+  // `num_views` first cameras' plain logits reads at least `margin` past
+  // zero (the check views; the free viewpoints after them may miss bits).
+  static bool Ready(const std::vector<std::vector<float>>& plain,
+                    size_t num_views, const Bits& message, double margin);
+  // Records candidate k's review at `iteration` from the plain logits and
+  // the logits through the layer, per check camera; turns it on when the
+  // layer breaks more than kBrokenShare of the bits the plain render reads.
+  // Returns true if it was turned on now.
+  bool Review(size_t k, int64_t iteration, const Bits& message,
+              const std::vector<std::vector<float>>& plain,
+              const std::vector<std::vector<float>>& distorted);
+
+  // Per candidate: simulated from which iteration, not needed, or never
+  // reviewed, with the latest review's figures.
+  std::string Summary() const;
+  // The turned-on iterations, for a checkpoint; Restore refuses (false) a
+  // list of another length or of values below -1.
+  std::vector<int64_t> State() const;
+  bool Restore(const std::vector<int64_t>& since);
+
+ private:
+  std::vector<DistortionCandidate> candidates_;
+};
+
+}  // namespace watergs
