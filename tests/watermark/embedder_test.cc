@@ -402,6 +402,23 @@ TEST(Embedder, OwnerReadingEmbedsTheDifferenceFromTheInput) {
   EXPECT_GT(after.psnr, 20.0);
 }
 
+// The message `decoder` reads from the input's whole-frame render at the
+// first training view, and the smallest |logit| there.
+Bits MessageTheInputCarries(const Scene& s, Decoder& decoder, double* weakest) {
+  ImageRGB render;
+  MakeCpuRasterizer()->Forward(s.model, s.views.Camera(s.train[0]), {}, &render,
+                               nullptr);
+  for (float& x : render.data) x = std::clamp(x, 0.f, 1.f);
+  const std::vector<float> logits = decoder.Logits(render);
+  Bits message(logits.size());
+  *weakest = 1e30;
+  for (size_t i = 0; i < logits.size(); ++i) {
+    message[i] = logits[i] > 0;
+    *weakest = std::min(*weakest, double(std::abs(logits[i])));
+  }
+  return message;
+}
+
 // The strength stop: a check's weakest margin is the smallest signed logit
 // over the check views' bits (computed here directly), and a run stops at
 // the first check where it reaches stop_margin (found by stepping a twin
@@ -413,18 +430,8 @@ TEST(Embedder, StopsAtTheFirstCheckWhereEveryBitReadsPastTheStopMargin) {
   Decoder decoder(&net);
   // The message the input already carries at the check view: every bit
   // reads, by min |logit|.
-  auto rasterizer = MakeCpuRasterizer();
-  ImageRGB render;
-  rasterizer->Forward(s.model, s.views.Camera(s.train[0]), {}, &render,
-                      nullptr);
-  for (float& x : render.data) x = std::clamp(x, 0.f, 1.f);
-  const std::vector<float> logits = decoder.Logits(render);
-  Bits message(logits.size());
-  double weakest = 1e30;
-  for (size_t i = 0; i < logits.size(); ++i) {
-    message[i] = logits[i] > 0;
-    weakest = std::min(weakest, double(std::abs(logits[i])));
-  }
+  double weakest = 0;
+  const Bits message = MessageTheInputCarries(s, decoder, &weakest);
   ASSERT_GT(weakest, 1e-4);
   EmbedOptions o = ShortEmbedOptions();
   o.check_views = {s.train[0]};
@@ -562,13 +569,8 @@ TEST(Embedder, SimulatesOnlyTheDistortionLayersTheCheckViewsAreShortOf) {
   HiddenModel net(TinyDecoderConfig(16), false, 5);
   MakeResponsive(&net, 1000.f, s.views);
   Decoder decoder(&net);
-  auto cpu = MakeCpuRasterizer();
-  ImageRGB render;
-  cpu->Forward(s.model, s.views.Camera(s.train[0]), {}, &render, nullptr);
-  for (float& x : render.data) x = std::clamp(x, 0.f, 1.f);
-  const std::vector<float> logits = decoder.Logits(render);
-  Bits message(logits.size());
-  for (size_t i = 0; i < logits.size(); ++i) message[i] = logits[i] > 0;
+  double weakest = 0;
+  const Bits message = MessageTheInputCarries(s, decoder, &weakest);
   EmbedOptions o = ShortEmbedOptions();
   o.distortions = ParseDistortionList("gn:0,dropout:0.95");
   o.choose_distortions = true;
