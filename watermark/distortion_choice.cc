@@ -50,7 +50,8 @@ bool DistortionChoice::Review(
     size_t k, int64_t iteration, const Bits& message,
     const std::vector<std::vector<float>>& plain,
     const std::vector<std::vector<float>>& distorted) {
-  if (k >= candidates_.size() || plain.size() != distorted.size()) {
+  if (k >= candidates_.size() || plain.empty() || distorted.empty() ||
+      distorted.size() % plain.size() != 0) {
     Fail("distortion review: candidate or camera count out of range");
   }
   DistortionCandidate& c = candidates_[k];
@@ -58,9 +59,10 @@ bool DistortionChoice::Review(
   c.read_bits = 0;
   c.weakest = std::numeric_limits<double>::infinity();
   c.reviewed_at = iteration;
-  for (size_t v = 0; v < plain.size(); ++v) {
+  for (size_t j = 0; j < distorted.size(); ++j) {
+    const size_t v = j % plain.size();
     for (size_t i = 0; i < message.size(); ++i) {
-      const float through = distorted[v][i];
+      const float through = distorted[j][i];
       const bool read = Reads(plain[v][i], message[i]);
       c.read_bits += read;
       c.broken_bits += read && !Reads(through, message[i]);

@@ -5,9 +5,11 @@
 // the plain render and, at each check once every bit of the check views
 // reads past the message term's margin (the plain embedding has done its
 // work there), renders the check cameras (views and free viewpoints)
-// through one draw of each candidate layer; a candidate that breaks more
-// than kBrokenShare of the bits the plain render reads is simulated from
-// then on. A bit or two broken is left to the views' aggregation.
+// through kReviewDraws draws of each candidate layer; a candidate that
+// breaks more than kBrokenShare of the bits the plain render reads (over
+// every draw) is simulated from then on. A bit or two broken is left to the
+// views' aggregation; several draws because one crop of the file may cut
+// the scene's centre where the next cuts nothing seen.
 #pragma once
 
 #include <cstdint>
@@ -23,14 +25,16 @@ namespace watergs {
 // One candidate layer and what its reviews found.
 // Share of the plainly read bits a layer may break without being simulated.
 constexpr double kBrokenShare = 0.01;
+// Draws of each candidate layer per review.
+constexpr int kReviewDraws = 4;
 
 struct DistortionCandidate {
   DistortionSpec spec;
   // Iteration of the review that turned it on; -1 while it is off.
   int64_t since = -1;
-  // At the latest review: bits (over every check camera) read by the plain
-  // render and lost through the layer, and the weakest signed logit through
-  // it (negative when some bit reads wrong).
+  // At the latest review, over every check camera and draw: bits read by
+  // the plain render and lost through the layer, and the weakest signed
+  // logit through it (negative when some bit reads wrong).
   int broken_bits = 0, read_bits = 0;
   double weakest = std::numeric_limits<double>::infinity();
   int64_t reviewed_at = -1;
@@ -53,9 +57,10 @@ class DistortionChoice {
   // zero (the check views; the free viewpoints after them may miss bits).
   static bool Ready(const std::vector<std::vector<float>>& plain,
                     size_t num_views, const Bits& message, double margin);
-  // Records candidate k's review at `iteration` from the plain logits and
-  // the logits through the layer, per check camera; turns it on when the
-  // layer breaks more than kBrokenShare of the bits the plain render reads.
+  // Records candidate k's review at `iteration` from the plain logits per
+  // check camera and the logits through draws of the layer (draw d of
+  // camera v at distorted[d * plain.size() + v]); turns it on when the draws
+  // break more than kBrokenShare of the bits the plain render reads.
   // Returns true if it was turned on now.
   bool Review(size_t k, int64_t iteration, const Bits& message,
               const std::vector<std::vector<float>>& plain,

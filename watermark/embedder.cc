@@ -696,14 +696,20 @@ bool Embedder::ReviewDistortions() {
   const GaussianModel& current = model();
   bool turned_on = false;
   for (size_t k = 0; k < choice_->candidates().size(); ++k) {
-    // One draw per review, from the seed, the iteration and the candidate
-    // (the iterations' own random stream stays untouched).
+    // Draws from the seed, the iteration and the candidate (the iterations'
+    // own random stream stays untouched).
     std::seed_seq seq{options_.seed, uint64_t(iteration_), uint64_t(k)};
     std::mt19937_64 rng(seq);
-    MakeDistortionLayer(choice_->candidates()[k].spec)
-        ->Apply(current, rng, &distorted_, &source_);
-    turned_on |= choice_->Review(k, iteration_, message_, plain,
-                                 ReadCameras(&distorted_, cameras, reference));
+    const auto layer = MakeDistortionLayer(choice_->candidates()[k].spec);
+    std::vector<std::vector<float>> through;
+    for (int draw = 0; draw < kReviewDraws; ++draw) {
+      layer->Apply(current, rng, &distorted_, &source_);
+      for (std::vector<float>& logits :
+           ReadCameras(&distorted_, cameras, reference)) {
+        through.push_back(std::move(logits));
+      }
+    }
+    turned_on |= choice_->Review(k, iteration_, message_, plain, through);
   }
   if (turned_on) {
     sampler_ = std::make_unique<DistortionSampler>(choice_->Simulated());

@@ -84,6 +84,25 @@ TEST(DistortionChoice, ALayerTurnsOnWhenItBreaksABitThePlainRenderReads) {
   EXPECT_EQ(choice.candidates()[1].reviewed_at, 750);
   EXPECT_THROW(choice.Review(3, 750, message, plain, plain), Error);
   EXPECT_THROW(choice.Review(0, 750, message, plain, {{2, -1}}), Error);
+  EXPECT_THROW(choice.Review(0, 750, message, {}, {}), Error);
+}
+
+// Draws of a layer count together: camera v's draw d at d * cameras + v,
+// each against camera v's plain reading.
+TEST(DistortionChoice, DrawsAreJudgedTogetherAgainstTheirCamerasPlainReading) {
+  const Bits message = {1, 0};
+  const std::vector<std::vector<float>> plain = {{2, -1}, {1, 0.5f}};
+  // Draw 0 breaks nothing; draw 1 breaks camera 0's bit 1 and camera 1's
+  // bit 0 (its bit 1 was wrong plainly and does not count).
+  const std::vector<std::vector<float>> draws = {
+      {2, -1}, {1, 1}, {2, 0.5f}, {-1, 1}};
+  DistortionChoice choice(Candidates());
+  EXPECT_TRUE(choice.Review(2, 500, message, plain, draws));
+  EXPECT_EQ(choice.candidates()[2].read_bits, 6);
+  EXPECT_EQ(choice.candidates()[2].broken_bits, 2);
+  EXPECT_DOUBLE_EQ(choice.candidates()[2].weakest, -1.0);
+  EXPECT_THROW(choice.Review(2, 750, message, plain, {{2, -1}, {1, 1}, {2, 0}}),
+               Error);
 }
 
 TEST(DistortionChoice, SummaryNamesEachCandidatesOutcome) {
