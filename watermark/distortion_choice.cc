@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <limits>
 
 #include "gaussian/util/error.h"
 
@@ -69,9 +70,9 @@ bool DistortionChoice::Review(
       c.weakest = std::min(c.weakest, double(message[i] ? through : -through));
     }
   }
-  if (c.simulated() || c.broken_bits <= kBrokenShare * c.read_bits) {
-    return false;
-  }
+  const bool short_of_it = c.broken_bits > kBrokenShare * c.read_bits;
+  c.short_reviews = short_of_it ? c.short_reviews + 1 : 0;
+  if (c.simulated() || c.short_reviews < kShortReviews) return false;
   c.since = iteration;
   return true;
 }
@@ -89,6 +90,11 @@ std::string DistortionChoice::Summary() const {
                     "%s not reviewed (the check views "
                     "never read)",
                     name.c_str());
+    } else if (c.short_reviews > 0) {
+      std::snprintf(part, sizeof(part),
+                    "%s short at the latest review only (simulated after %d "
+                    "in a row)",
+                    name.c_str(), kShortReviews);
     } else {
       std::snprintf(part, sizeof(part), "%s not needed", name.c_str());
     }
@@ -107,18 +113,26 @@ std::string DistortionChoice::Summary() const {
 }
 
 std::vector<int64_t> DistortionChoice::State() const {
-  std::vector<int64_t> since;
-  for (const DistortionCandidate& c : candidates_) since.push_back(c.since);
-  return since;
+  std::vector<int64_t> state;
+  for (const DistortionCandidate& c : candidates_) {
+    state.push_back(c.since);
+    state.push_back(c.short_reviews);
+  }
+  return state;
 }
 
-bool DistortionChoice::Restore(const std::vector<int64_t>& since) {
-  if (since.size() != candidates_.size()) return false;
-  if (std::any_of(since.begin(), since.end(),
-                  [](int64_t s) { return s < -1; })) {
-    return false;
+bool DistortionChoice::Restore(const std::vector<int64_t>& state) {
+  if (state.size() != 2 * candidates_.size()) return false;
+  for (size_t k = 0; k < candidates_.size(); ++k) {
+    if (state[2 * k] < -1 || state[2 * k + 1] < 0 ||
+        state[2 * k + 1] > std::numeric_limits<int>::max()) {
+      return false;
+    }
   }
-  for (size_t k = 0; k < since.size(); ++k) candidates_[k].since = since[k];
+  for (size_t k = 0; k < candidates_.size(); ++k) {
+    candidates_[k].since = state[2 * k];
+    candidates_[k].short_reviews = int(state[2 * k + 1]);
+  }
   return true;
 }
 

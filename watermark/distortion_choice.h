@@ -7,9 +7,12 @@
 // work there), renders the check cameras (views and free viewpoints)
 // through kReviewDraws draws of each candidate layer; a candidate that
 // breaks more than kBrokenShare of the bits the plain render reads (over
-// every draw) is simulated from then on. A bit or two broken is left to the
-// views' aggregation; several draws because one crop of the file may cut
-// the scene's centre where the next cuts nothing seen.
+// every draw) at kShortReviews reviews in a row is simulated from then on.
+// A bit or two broken is left to the views' aggregation; several draws
+// because one crop of the file may cut the scene's centre where the next
+// cuts nothing seen; reviews in a row because the margins keep growing
+// after the check views first read (on horns crop broke 26 of 384 bits at
+// that first review, none at the end of a run without layers).
 #pragma once
 
 #include <cstdint>
@@ -27,6 +30,8 @@ namespace watergs {
 constexpr double kBrokenShare = 0.01;
 // Draws of each candidate layer per review.
 constexpr int kReviewDraws = 4;
+// Reviews in a row a layer must fall short at before it is simulated.
+constexpr int kShortReviews = 2;
 
 struct DistortionCandidate {
   DistortionSpec spec;
@@ -38,6 +43,8 @@ struct DistortionCandidate {
   int broken_bits = 0, read_bits = 0;
   double weakest = std::numeric_limits<double>::infinity();
   int64_t reviewed_at = -1;
+  // Reviews in a row, up to the latest, that found it short.
+  int short_reviews = 0;
   bool simulated() const { return since >= 0; }
 };
 
@@ -60,8 +67,9 @@ class DistortionChoice {
   // Records candidate k's review at `iteration` from the plain logits per
   // check camera and the logits through draws of the layer (draw d of
   // camera v at distorted[d * plain.size() + v]); turns it on when the draws
-  // break more than kBrokenShare of the bits the plain render reads.
-  // Returns true if it was turned on now.
+  // break more than kBrokenShare of the bits the plain render reads at the
+  // kShortReviews-th review in a row. Returns true if it was turned on now.
+  // (A check where reviews cannot judge, Ready false, leaves the count.)
   bool Review(size_t k, int64_t iteration, const Bits& message,
               const std::vector<std::vector<float>>& plain,
               const std::vector<std::vector<float>>& distorted);
@@ -69,10 +77,11 @@ class DistortionChoice {
   // Per candidate: simulated from which iteration, not needed, or never
   // reviewed, with the latest review's figures.
   std::string Summary() const;
-  // The turned-on iterations, for a checkpoint; Restore refuses (false) a
-  // list of another length or of values below -1.
+  // For a checkpoint: per candidate its turned-on iteration and its short
+  // reviews in a row. Restore refuses (false) a list of another length or
+  // with values out of range.
   std::vector<int64_t> State() const;
-  bool Restore(const std::vector<int64_t>& since);
+  bool Restore(const std::vector<int64_t>& state);
 
  private:
   std::vector<DistortionCandidate> candidates_;

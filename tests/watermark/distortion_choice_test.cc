@@ -54,34 +54,45 @@ TEST(DistortionChoice, ABitOrTwoBrokenInAHundredIsLeftToAggregation) {
   EXPECT_FALSE(choice.Review(0, 250, message, plain, through));
   EXPECT_EQ(choice.candidates()[0].broken_bits, 2);
   EXPECT_EQ(choice.candidates()[0].read_bits, 200);
+  EXPECT_EQ(choice.candidates()[0].short_reviews, 0);
   through[1][8] = -0.5f;
-  EXPECT_TRUE(choice.Review(0, 500, message, plain, through));
-  EXPECT_EQ(choice.candidates()[0].since, 500);
+  EXPECT_FALSE(choice.Review(0, 500, message, plain, through));
+  EXPECT_EQ(choice.candidates()[0].short_reviews, 1);
+  EXPECT_TRUE(choice.Review(0, 750, message, plain, through));
+  EXPECT_EQ(choice.candidates()[0].since, 750);
 }
 
 // Broken: read by the plain render and wrong through the layer. A bit the
-// plain render already misses does not count against the layer.
-TEST(DistortionChoice, ALayerTurnsOnWhenItBreaksABitThePlainRenderReads) {
+// plain render already misses does not count against the layer. A layer
+// is simulated at the second review in a row that finds it short.
+TEST(DistortionChoice, ALayerTurnsOnAtTheSecondReviewInARowThatFindsItShort) {
   const Bits message = {1, 0};
   const std::vector<std::vector<float>> plain = {{2, -1}, {1, 0.5f}};
+  const std::vector<std::vector<float>> intact = {{1, -0.5f}, {1, 2}};
+  const std::vector<std::vector<float>> broken = {{-0.1f, -1}, {1, 2}};
   DistortionChoice choice(Candidates());
   // View 1's bit 1 is wrong plainly and through the layer: nothing broken.
-  EXPECT_FALSE(choice.Review(1, 250, message, plain, {{1, -0.5f}, {1, 2}}));
+  EXPECT_FALSE(choice.Review(1, 250, message, plain, intact));
   EXPECT_EQ(choice.candidates()[1].broken_bits, 0);
-  EXPECT_FALSE(choice.candidates()[1].simulated());
+  EXPECT_EQ(choice.candidates()[1].read_bits, 3);
   EXPECT_DOUBLE_EQ(choice.candidates()[1].weakest, -2.0);
-  EXPECT_EQ(choice.Simulated().size(), 1u);
-  // View 0's bit 0 flips: broken, turned on at this iteration.
-  EXPECT_TRUE(choice.Review(1, 500, message, plain, {{-0.1f, -1}, {1, 2}}));
+  // View 0's bit 0 flips: short once, then not, then twice in a row.
+  EXPECT_FALSE(choice.Review(1, 500, message, plain, broken));
   EXPECT_EQ(choice.candidates()[1].broken_bits, 1);
-  EXPECT_EQ(choice.candidates()[1].since, 500);
+  EXPECT_EQ(choice.candidates()[1].short_reviews, 1);
+  EXPECT_FALSE(choice.Review(1, 750, message, plain, intact));
+  EXPECT_EQ(choice.candidates()[1].short_reviews, 0);
+  EXPECT_FALSE(choice.Review(1, 1000, message, plain, broken));
+  EXPECT_EQ(choice.Simulated().size(), 1u);
+  EXPECT_TRUE(choice.Review(1, 1250, message, plain, broken));
+  EXPECT_EQ(choice.candidates()[1].since, 1250);
   ASSERT_EQ(choice.Simulated().size(), 2u);
   EXPECT_EQ(ToString(choice.Simulated()[1]), "dropout:0.1");
   // Later reviews record figures but do not turn it on again.
-  EXPECT_FALSE(choice.Review(1, 750, message, plain, {{-1, 1}, {1, 2}}));
+  EXPECT_FALSE(choice.Review(1, 1500, message, plain, {{-1, 1}, {1, 2}}));
   EXPECT_EQ(choice.candidates()[1].broken_bits, 2);
-  EXPECT_EQ(choice.candidates()[1].since, 500);
-  EXPECT_EQ(choice.candidates()[1].reviewed_at, 750);
+  EXPECT_EQ(choice.candidates()[1].since, 1250);
+  EXPECT_EQ(choice.candidates()[1].reviewed_at, 1500);
   EXPECT_THROW(choice.Review(3, 750, message, plain, plain), Error);
   EXPECT_THROW(choice.Review(0, 750, message, plain, {{2, -1}}), Error);
   EXPECT_THROW(choice.Review(0, 750, message, {}, {}), Error);
@@ -97,9 +108,10 @@ TEST(DistortionChoice, DrawsAreJudgedTogetherAgainstTheirCamerasPlainReading) {
   const std::vector<std::vector<float>> draws = {
       {2, -1}, {1, 1}, {2, 0.5f}, {-1, 1}};
   DistortionChoice choice(Candidates());
-  EXPECT_TRUE(choice.Review(2, 500, message, plain, draws));
+  EXPECT_FALSE(choice.Review(2, 500, message, plain, draws));
   EXPECT_EQ(choice.candidates()[2].read_bits, 6);
   EXPECT_EQ(choice.candidates()[2].broken_bits, 2);
+  EXPECT_EQ(choice.candidates()[2].short_reviews, 1);
   EXPECT_DOUBLE_EQ(choice.candidates()[2].weakest, -1.0);
   EXPECT_THROW(choice.Review(2, 750, message, plain, {{2, -1}, {1, 1}, {2, 0}}),
                Error);
@@ -110,29 +122,44 @@ TEST(DistortionChoice, SummaryNamesEachCandidatesOutcome) {
   DistortionChoice choice(Candidates());
   choice.Review(0, 250, message, {{3}}, {{2.5f}});
   choice.Review(1, 250, message, {{3}}, {{-0.25f}});
+  choice.Review(1, 500, message, {{3}}, {{-0.25f}});
+  choice.Review(2, 500, message, {{3}}, {{-0.5f}});
   const std::string summary = choice.Summary();
   EXPECT_NE(summary.find("gn:0.01 not needed (at iteration 250 through it: 0 "
                          "of 1 read bits broken, weakest +2.50)"),
             std::string::npos)
       << summary;
-  EXPECT_NE(summary.find("dropout:0.1 from iteration 250"), std::string::npos)
+  EXPECT_NE(summary.find("dropout:0.1 from iteration 500"), std::string::npos)
       << summary;
-  EXPECT_NE(summary.find("crop:0.1 not reviewed"), std::string::npos)
+  EXPECT_NE(summary.find("crop:0.1 short at the latest review only"),
+            std::string::npos)
       << summary;
+  EXPECT_EQ(DistortionChoice(Candidates())
+                .Summary()
+                .find("gn:0.01 not reviewed (the check views never read)"),
+            0u);
 }
 
 TEST(DistortionChoice, StateRestoresAndRefusesAnotherRunsState) {
   DistortionChoice choice(Candidates());
+  choice.Review(0, 500, {1}, {{1}}, {{-1}});
+  choice.Review(2, 500, {1}, {{1}}, {{-1}});
   choice.Review(2, 750, {1}, {{1}}, {{-1}});
+  // Per candidate: turned on at, short reviews in a row.
   const std::vector<int64_t> state = choice.State();
-  EXPECT_EQ(state, (std::vector<int64_t>{-1, -1, 750}));
+  EXPECT_EQ(state, (std::vector<int64_t>{-1, 1, -1, 0, 750, 2}));
   DistortionChoice restored(Candidates());
   ASSERT_TRUE(restored.Restore(state));
   ASSERT_EQ(restored.Simulated().size(), 2u);
   EXPECT_EQ(ToString(restored.Simulated()[1]), "crop:0.1");
-  EXPECT_FALSE(restored.Restore({-1, 750}));
-  EXPECT_FALSE(restored.Restore({-1, -2, 750}));
-  EXPECT_EQ(restored.State(), state);  // A refusal changes nothing.
+  // The restored streak counts on: gn turns on at its next short review.
+  EXPECT_TRUE(restored.Review(0, 1000, {1}, {{1}}, {{-1}}));
+  DistortionChoice fresh(Candidates());
+  EXPECT_FALSE(fresh.Restore({-1, 0, 750, 2}));
+  EXPECT_FALSE(fresh.Restore({-1, 0, -2, 0, 750, 2}));
+  EXPECT_FALSE(fresh.Restore({-1, -1, -1, 0, 750, 2}));
+  EXPECT_EQ(fresh.State(), (std::vector<int64_t>{-1, 0, -1, 0, -1, 0}))
+      << "a refusal changes nothing";
 }
 
 }  // namespace
