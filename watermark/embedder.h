@@ -51,9 +51,9 @@ struct EmbedOptions {
   // Distortion layers sampled per iteration; empty = none (plain render).
   std::vector<DistortionSpec> distortions;
   // Chosen per scene: `distortions` are then candidates, none simulated at
-  // first; at each check where every check view reads, each candidate is
-  // reviewed on the check cameras and simulated from then on if it breaks a
-  // bit the plain render reads (distortion_choice.h).
+  // first; at each check where every check view reads past the margin, each
+  // candidate is reviewed on the check cameras and simulated from then on
+  // once it falls short at two reviews in a row (distortion_choice.h).
   bool choose_distortions = false;
   // Side of the random square crop rendered per iteration (clamped to the
   // frame); 0 renders whole frames.

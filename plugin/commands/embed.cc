@@ -305,8 +305,9 @@ int RunEmbed(int argc, char** argv) {
              "3D distortion layers sampled per iteration, or none, or auto "
              "(chosen per scene: each of " +
                  std::string(kCandidateDistortions) +
-                 " is simulated once a check finds it breaks a bit the plain "
-                 "render reads), or auto:LIST (those candidates)");
+                 " is simulated once two checks in a row find that it breaks "
+                 "more than 1% of the bits the plain render reads), or "
+                 "auto:LIST (those candidates)");
   parser.Add("crop_size", &a.crop_size,
              "Side of the random crop rendered per iteration (0 = frames)");
   parser.AddFlag("full_frame_loss", &a.full_frame_loss,
