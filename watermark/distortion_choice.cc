@@ -87,8 +87,7 @@ std::string DistortionChoice::Summary() const {
                     static_cast<long long>(c.since));
     } else if (c.reviewed_at < 0) {
       std::snprintf(part, sizeof(part),
-                    "%s not reviewed (the check views "
-                    "never read)",
+                    "%s not reviewed (the check views never read)",
                     name.c_str());
     } else if (c.short_reviews > 0) {
       std::snprintf(part, sizeof(part),

@@ -25,7 +25,6 @@
 
 namespace watergs {
 
-// One candidate layer and what its reviews found.
 // Share of the plainly read bits a layer may break without being simulated.
 constexpr double kBrokenShare = 0.01;
 // Draws of each candidate layer per review.
@@ -33,6 +32,7 @@ constexpr int kReviewDraws = 4;
 // Reviews in a row a layer must fall short at before it is simulated.
 constexpr int kShortReviews = 2;
 
+// One candidate layer and what its reviews found.
 struct DistortionCandidate {
   DistortionSpec spec;
   // Iteration of the review that turned it on; -1 while it is off.
