@@ -5,7 +5,8 @@
 
 Reads OUT/raw/report.json (the raw model), OUT/times.txt, and for each run OUT/probe/runs/LABEL/
 {held,free,eval,table1}.json. Table 1 follows the paper: BER per rendered held-out image (the mean
-over views of each view's own BER), for identity / Gaussian noise / dropout / crop, read blind and
+over views of each view's own BER; where eval drew a random attack several times, --attack_draws,
+the cell adds the mean and largest over the draws), for identity / Gaussian noise / dropout / crop, read blind and
 as the owner; PSNR and SSIM against the photos, PSNR against the raw model's renders. A single view
 is "present" under a key at p <= 1e-6 when at most THRESHOLD of its 48 bits are wrong (the binomial
 tail of a fair coin).
@@ -50,6 +51,18 @@ def row_reading(row, reading):
     return source["view_ber"]["mean"], source["bit_errors"]
 
 
+def draws_note(row, reading):
+    """' ; over N draws: mean M% (max X%), agg <= E' for a row eval drew more than once
+    (--attack_draws: the row itself is the first draw), else ''."""
+    if "draws" not in row:
+        return ""
+    draws = row["draws"]
+    source = draws["owner"] if reading == "owner" else draws
+    ber, errors = source["view_ber"], source["bit_errors"]
+    return (f"; {draws['count']} draws: {100 * ber['mean']:.2f}% (max {100 * ber['max']:.2f}%), "
+            f"agg <= {errors['max']:.0f}")
+
+
 def main(out):
     runs_dir = os.path.join(out, "probe", "runs")
     raw = load(os.path.join(out, "raw", "report.json"))
@@ -82,7 +95,8 @@ def main(out):
             cells = []
             for attack in ATTACKS:
                 per_image, errors = row_reading(rows[attack], reading)
-                cells.append(f"{100 * per_image:.2f}% ({errors}/48 agg)")
+                cells.append(f"{100 * per_image:.2f}% ({errors}/48 agg)" +
+                             draws_note(rows[attack], reading))
             psnr_raw = f"{raw_q['psnr']:.2f}" if "psnr" in raw_q else "n/a"
             lines.append(f"| {label} | {reading} | " + " | ".join(cells) +
                          f" | {psnr_raw} -> {wm_q['psnr']:.2f} | {wm_q['ssim']:.4f} | {vs_raw:.2f} |")

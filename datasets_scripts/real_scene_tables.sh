@@ -13,7 +13,8 @@
 #   'owner:0::nodl:--distortions none'   'owner:0::xyz:--mask xyz --distortions none'
 # Writes OUT/tables.md (aggregate_real_scene.py) and OUT/times.txt (seconds per stage).
 # Environment: WATERGS_BIN, DECODER, DOWNSCALE (2), ITERATIONS (7000; densification to half of it),
-# EMBED_ARGS (extra embed options for every run, e.g. --stop_margin 1).
+# EMBED_ARGS (extra embed options for every run, e.g. --stop_margin 1), ATTACK_DRAWS (1: draws of
+# each random distortion in Table 1; above 1 a kept table1.json with another count is evaluated again).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 scene=${1:?usage: real_scene_tables.sh SCENE OUT [READING:SEED ...]}
@@ -25,6 +26,7 @@ bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
 decoder="${DECODER:-$root/watermark/models/decoder_48.bin}"
 ds="${DOWNSCALE:-2}"
 iterations="${ITERATIONS:-7000}"
+draws="${ATTACK_DRAWS:-1}"
 msg=text:WGS-26
 [ -d "$scene/images" ] || { echo "real_scene_tables: $scene/images: no such folder" >&2; exit 1; }
 mkdir -p "$out"
@@ -63,11 +65,13 @@ for run in "${runs[@]}"; do
       WATERGS_BIN="$bin" bash "$root/datasets_scripts/single_view_probe.sh" "$out/probe" "$label" \
       --reading "$reading" --seed "$seed" "${stop_args[@]}" "${extra_args[@]}" ${EMBED_ARGS:-}
   fi
-  if [ ! -f "$dir/table1.json" ]; then
+  if [ ! -f "$dir/table1.json" ] ||
+     { [ "$draws" -gt 1 ] && ! grep -q "\"attack_draws\": $draws," "$dir/table1.json"; }; then
     log "Table 1 distortions for $label"
     timed "eval:$label" "$bin" eval --raw_path "$raw" --input_path "$dir/wm.ply" --workspace_path "$scene" \
       --downscale "$ds" --decoder "$decoder" --message "$msg" --views test \
       --attacks identity,gn:0.01,dropout:0.1,crop:0.1 --image_attacks '' --lpips_weights '' \
+      --attack_draws "$draws" \
       --output_path "$dir/table1" > "$dir/table1.txt" 2>&1
   fi
 done

@@ -52,6 +52,10 @@ class AggregateRealScene(unittest.TestCase):
             run = f"{out}/probe/runs/owner_seed0"
             rows = [robustness_row(a, [0.5, 0.25], [0.0, 0.125])
                     for a in ("identity", "gn:0.01", "dropout:0.1", "crop:0.1")]
+            spread = {"mean": 0.03125, "min": 0.0, "max": 0.0625}
+            rows[3]["draws"] = {"count": 4, "view_ber": spread, "bit_errors": spread,
+                                "owner": {"view_ber": spread,
+                                          "bit_errors": {"mean": 1.5, "min": 0, "max": 3}}}
             rows.append({"model": "raw", "attack": "identity", "view_ber": stats([0.9, 0.9]),
                          "bit_errors": 30, "owner": {"view_ber": stats([1.0, 1.0]), "bit_errors": 48}})
             write(f"{run}/table1.json", {"num_bits": 48, "robustness": rows, "quality": [
@@ -70,6 +74,9 @@ class AggregateRealScene(unittest.TestCase):
         blind = next(l for l in text.splitlines() if l.startswith("| owner_seed0 | blind |"))
         # Mean of the views' BERs: owner (0 + 12.5) / 2, blind (50 + 25) / 2.
         self.assertIn("6.25% (1/48 agg)", owner)
+        # The crop row was drawn 4 times: its first draw, then the draws' mean and worst.
+        self.assertIn("6.25% (1/48 agg); 4 draws: 3.12% (max 6.25%), agg <= 3", owner)
+        self.assertEqual(owner.count("draws"), 1)
         self.assertIn("37.50% (9/48 agg)", blind)
         self.assertIn("22.00 -> 21.50", owner)
         self.assertIn("| 36.25 |", owner)

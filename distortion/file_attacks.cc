@@ -467,6 +467,11 @@ bool AttackNeedsCameras(const ModelAttackSpec& spec) {
   return spec.kind == ModelAttackKind::kPruneSignificance;
 }
 
+bool AttackRendersPerDraw(const ModelAttackSpec& spec) {
+  return spec.kind == ModelAttackKind::kDistortion &&
+         spec.distortion.kind != DistortionKind::kIdentity;
+}
+
 void ApplyModelAttack(const ModelAttackSpec& spec, const GaussianModel& in,
                       std::mt19937_64& rng, GaussianModel* out,
                       std::vector<uint32_t>* source,

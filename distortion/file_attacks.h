@@ -126,6 +126,10 @@ std::string ToString(const ModelAttackSpec& spec);
 // Gaussians by their blend weight in the training cameras).
 bool AttackNeedsCameras(const ModelAttackSpec& spec);
 
+// Whether the attacked model's renders depend on the random draw: the 3D
+// distortions other than identity (a shuffle reorders rows, not the scene).
+bool AttackRendersPerDraw(const ModelAttackSpec& spec);
+
 // out = attack(in); source[i] is the index in `in` of output Gaussian i
 // (for PlyLayout::RemapExtras). `out` must not alias `in`. `cameras`: the
 // training cameras, needed by the attacks AttackNeedsCameras names (Error

@@ -652,9 +652,34 @@ void Embedder::ScorePool() {
   }
 }
 
+std::vector<RenderCamera> Embedder::CheckCameras(
+    const std::vector<size_t>& views) const {
+  std::vector<RenderCamera> cameras;
+  for (size_t view : views) cameras.push_back(views_.Camera(view));
+  cameras.insert(cameras.end(), options_.check_free_views.begin(),
+                 options_.check_free_views.end());
+  return cameras;
+}
+
+const std::vector<std::vector<float>>& Embedder::CheckReference(
+    const std::vector<size_t>& views) {
+  // The input model and the decoder are fixed: one reading per view set.
+  if (!options_.owner_reading ||
+      (check_reference_views_ == views && !check_reference_.empty())) {
+    return check_reference_;
+  }
+  check_reference_.clear();
+  check_reference_views_ = views;
+  for (const RenderCamera& camera : CheckCameras(views)) {
+    check_reference_.push_back(decoder_->Logits(*RenderInput(camera)));
+  }
+  return check_reference_;
+}
+
 std::vector<std::vector<float>> Embedder::ReadCameras(
     const GaussianModel* model, const std::vector<RenderCamera>& cameras,
-    const std::vector<std::vector<float>>& reference) {
+    const std::vector<std::vector<float>>& reference,
+    const std::vector<std::shared_ptr<const ImageRGB>>* truths, double* psnr) {
   std::vector<std::vector<float>> logits(cameras.size());
   ImageRGB image;
   RenderOptions render_options;
@@ -670,29 +695,22 @@ std::vector<std::vector<float>> Embedder::ReadCameras(
     if (options_.owner_reading) {
       SubtractReference(reference[k], message_, &logits[k]);
     }
+    if (truths && k < truths->size()) {
+      *psnr += Psnr(image, *(*truths)[k]) / truths->size();
+    }
   }
   return logits;
 }
 
-bool Embedder::ReviewDistortions() {
-  std::vector<RenderCamera> cameras;
-  for (size_t view : options_.check_views) {
-    cameras.push_back(views_.Camera(view));
-  }
-  cameras.insert(cameras.end(), options_.check_free_views.begin(),
-                 options_.check_free_views.end());
-  std::vector<std::vector<float>> reference;
-  if (options_.owner_reading) {
-    for (const RenderCamera& camera : cameras) {
-      reference.push_back(decoder_->Logits(*RenderInput(camera)));
-    }
-  }
-  const std::vector<std::vector<float>> plain =
-      ReadCameras(nullptr, cameras, reference);
+bool Embedder::ReviewDistortions(const CheckResult& check) {
+  const std::vector<std::vector<float>>& plain = check.logits;
   if (!DistortionChoice::Ready(plain, options_.check_views.size(), message_,
                                options_.margin)) {
     return false;
   }
+  const std::vector<RenderCamera> cameras = CheckCameras(options_.check_views);
+  const std::vector<std::vector<float>>& reference =
+      CheckReference(options_.check_views);
   const GaussianModel& current = model();
   bool turned_on = false;
   for (size_t k = 0; k < choice_->candidates().size(); ++k) {
@@ -717,48 +735,32 @@ bool Embedder::ReviewDistortions() {
   return turned_on;
 }
 
-double Embedder::DecodeViews(
-    const std::vector<RenderCamera>& cameras,
-    const std::vector<std::shared_ptr<const ImageRGB>>* truths,
-    std::vector<double>* sum_logits, double* psnr, double* weakest) {
-  double mean_ber = 0;
-  ImageRGB image;
-  for (size_t k = 0; k < cameras.size(); ++k) {
-    RenderCurrent(cameras[k], &image);
-    std::vector<float> logits = decoder_->Logits(image);
-    if (options_.owner_reading) {
-      SubtractReference(decoder_->Logits(*RenderInput(cameras[k])), message_,
-                        &logits);
-    }
-    mean_ber += double(CountBitErrors(logits, message_)) / message_.size() /
-                cameras.size();
-    if (weakest) *weakest = std::min(*weakest, WeakestMargin(logits, message_));
-    if (sum_logits) {
-      for (size_t i = 0; i < logits.size(); ++i) (*sum_logits)[i] += logits[i];
-    }
-    if (truths) *psnr += Psnr(image, *(*truths)[k]) / cameras.size();
-  }
-  return mean_ber;
-}
-
 CheckResult Embedder::Check(const std::vector<size_t>& views) {
   CheckResult result;
-  if (!views.empty()) {
-    std::vector<RenderCamera> cameras;
-    std::vector<std::shared_ptr<const ImageRGB>> truths;
-    for (size_t view : views) {
-      cameras.push_back(views_.Camera(view));
-      truths.push_back(views_.Image(view));
+  std::vector<std::shared_ptr<const ImageRGB>> truths;
+  for (size_t view : views) truths.push_back(views_.Image(view));
+  result.logits = ReadCameras(nullptr, CheckCameras(views),
+                              CheckReference(views), &truths, &result.psnr);
+  const size_t num_free = result.logits.size() - views.size();
+  std::vector<double> sum_logits(message_.size(), 0.0);
+  for (size_t k = 0; k < result.logits.size(); ++k) {
+    const std::vector<float>& logits = result.logits[k];
+    const double ber =
+        double(CountBitErrors(logits, message_)) / message_.size();
+    result.weakest_margin =
+        std::min(result.weakest_margin, WeakestMargin(logits, message_));
+    if (k >= views.size()) {
+      result.free_mean_ber += ber / num_free;
+      continue;
     }
-    std::vector<double> mean_logits(message_.size(), 0.0);
-    result.mean_ber = DecodeViews(cameras, &truths, &mean_logits, &result.psnr,
-                                  &result.weakest_margin);
-    std::vector<float> aggregate(mean_logits.begin(), mean_logits.end());
+    result.mean_ber += ber / views.size();
+    for (size_t i = 0; i < logits.size(); ++i) sum_logits[i] += logits[i];
+  }
+  if (!views.empty()) {
+    const std::vector<float> aggregate(sum_logits.begin(), sum_logits.end());
     result.aggregate_ber =
         double(CountBitErrors(aggregate, message_)) / message_.size();
   }
-  result.free_mean_ber = DecodeViews(options_.check_free_views, nullptr,
-                                     nullptr, nullptr, &result.weakest_margin);
   return result;
 }
 
@@ -787,7 +789,7 @@ bool Embedder::Run() {
       read_past_margin = options_.stop_margin > 0 &&
                          last_check.weakest_margin >= options_.stop_margin;
       // A layer turned on now has iterations to come before any stop.
-      if (choice_ && ReviewDistortions()) {
+      if (choice_ && ReviewDistortions(last_check)) {
         zero_ber_checks_ = 0;
         read_past_margin = false;
         if (bar) bar->Print("embed: distortion layers " + choice_->Summary());

@@ -186,6 +186,8 @@ struct CheckResult {
   // The smallest signed logit (in the reading the embedding optimises) over
   // every bit of every check view and free viewpoint: > 0 when all read.
   double weakest_margin = std::numeric_limits<double>::infinity();
+  // Each camera's logits in that reading: the views, then the free ones.
+  std::vector<std::vector<float>> logits;
 };
 
 class Embedder {
@@ -255,13 +257,6 @@ class Embedder {
   };
 
   std::string RunSignature() const;
-  // Mean per-view BER of whole-frame renders from `cameras`; adds each
-  // render's PSNR against truths[k] / n into *psnr where truths is given;
-  // lowers *weakest to the weakest bit's signed logit where given.
-  double DecodeViews(const std::vector<RenderCamera>& cameras,
-                     const std::vector<std::shared_ptr<const ImageRGB>>* truths,
-                     std::vector<double>* sum_logits, double* psnr,
-                     double* weakest);
   size_t NextView();
   // A free viewpoint between two training cameras (or a pool view) and the
   // input model's render there (the image target).
@@ -274,15 +269,25 @@ class Embedder {
   std::shared_ptr<const std::vector<float>> PoolReferenceLogits(size_t k);
   // Decodes every pool view and records how far each falls short.
   void ScorePool();
+  // The cameras Check(views) reads: `views`, then the free check viewpoints.
+  std::vector<RenderCamera> CheckCameras(
+      const std::vector<size_t>& views) const;
+  // The input model's logits at CheckCameras(views) for the owner's reading
+  // (empty without it); kept for the last view set asked.
+  const std::vector<std::vector<float>>& CheckReference(
+      const std::vector<size_t>& views);
   // The decoder's logits (in the optimised reading) of whole-frame renders
   // of `model` (null: the model being embedded) from `cameras`; `reference`
-  // holds the input model's logits there for the owner's reading.
+  // holds the input model's logits there for the owner's reading. Adds the
+  // PSNR of render k against (*truths)[k] / truths->size() into *psnr.
   std::vector<std::vector<float>> ReadCameras(
       const GaussianModel* model, const std::vector<RenderCamera>& cameras,
-      const std::vector<std::vector<float>>& reference);
-  // Reviews each candidate layer on the check cameras (choose_distortions);
-  // true when one was turned on now.
-  bool ReviewDistortions();
+      const std::vector<std::vector<float>>& reference,
+      const std::vector<std::shared_ptr<const ImageRGB>>* truths = nullptr,
+      double* psnr = nullptr);
+  // Reviews each candidate layer on the check cameras (choose_distortions),
+  // `check` being the plain reading there now; true when one was turned on.
+  bool ReviewDistortions(const CheckResult& check);
   // The input model's render from `camera`, clamped to [0, 1].
   std::shared_ptr<const ImageRGB> RenderInput(const RenderCamera& camera);
   // The input model's render from a training view (cached).
@@ -325,6 +330,9 @@ class Embedder {
   GaussianModel input_model_;
   std::vector<std::shared_ptr<const ImageRGB>> input_renders_;
   std::vector<std::shared_ptr<const std::vector<float>>> reference_logits_;
+  // CheckReference's cache and the views it holds.
+  std::vector<std::vector<float>> check_reference_;
+  std::vector<size_t> check_reference_views_;
   // Hard-viewpoint replay (null when hard_views is 0), with its targets.
   std::unique_ptr<ViewpointPool> pool_;
   std::vector<std::shared_ptr<const ImageRGB>> pool_targets_;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 
 #include "gaussian/loss.h"
@@ -66,7 +67,56 @@ std::string Format(const char* format, double value) {
   return buffer;
 }
 
+// The random stream of draw `draw` of model attack `attack`: the first
+// draw keeps the seed + k of one-draw evaluations.
+std::mt19937_64 DrawRng(uint64_t seed, size_t attack, int draw) {
+  if (draw == 0) return std::mt19937_64(seed + attack);
+  std::seed_seq seq{seed, uint64_t(attack), uint64_t(draw)};
+  return std::mt19937_64(seq);
+}
+
+AttackDraw ReadDraw(const ExtractionResult& blind,
+                    const ExtractionResult& owner) {
+  return {blind.mean_view_ber, owner.mean_view_ber, blind.bit_errors,
+          owner.bit_errors};
+}
+
+nlohmann::json SpreadJson(const DrawSpread& spread) {
+  return {{"mean", spread.mean}, {"min", spread.min}, {"max", spread.max}};
+}
+
+// A row's draws: each figure's mean, min and max over them.
+nlohmann::json DrawsJson(const std::vector<AttackDraw>& draws) {
+  const auto spread = [&](auto figure) {
+    return SpreadJson(SpreadOver(draws, figure));
+  };
+  return {{"count", draws.size()},
+          {"view_ber", spread([](const AttackDraw& d) { return d.view_ber; })},
+          {"bit_errors",
+           spread([](const AttackDraw& d) { return double(d.bit_errors); })},
+          {"owner",
+           {{"view_ber",
+             spread([](const AttackDraw& d) { return d.owner_view_ber; })},
+            {"bit_errors", spread([](const AttackDraw& d) {
+               return double(d.owner_bit_errors);
+             })}}}};
+}
+
 }  // namespace
+
+DrawSpread SpreadOver(const std::vector<AttackDraw>& draws,
+                      const std::function<double(const AttackDraw&)>& figure) {
+  DrawSpread spread;
+  if (draws.empty()) return spread;
+  spread.min = spread.max = figure(draws[0]);
+  for (const AttackDraw& draw : draws) {
+    const double value = figure(draw);
+    spread.mean += value / double(draws.size());
+    spread.min = std::min(spread.min, value);
+    spread.max = std::max(spread.max, value);
+  }
+  return spread;
+}
 
 ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
                        const RenderCamera& camera,
@@ -121,12 +171,14 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
                                    BitDecoder& decoder, const Bits& message,
                                    const EvaluationOptions& options) {
   if (eval_views.empty()) Fail("eval: no views to evaluate");
+  if (options.attack_draws < 1) Fail("eval: --attack_draws must be >= 1");
   const auto begin = std::chrono::steady_clock::now();
   EvaluationReport report;
   report.raw_gaussians = raw.size();
   report.watermarked_gaussians = watermarked.size();
   report.message = message;
   report.thresholds = options.thresholds;
+  report.attack_draws = options.attack_draws;
   report.lpips_note = options.lpips ? "" : options.lpips_note;
   report.ground_truth_note =
       options.ground_truth ? "" : options.ground_truth_note;
@@ -134,8 +186,10 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
   report.vs_raw.label = "watermarked vs raw renders";
   report.raw_vs_ground_truth.label = "raw vs ground truth";
   const size_t n = eval_views.size();
-  const size_t num_attacks =
-      options.model_attacks.size() + options.image_attacks.size() + 1;
+  size_t num_attacks = options.image_attacks.size() + 1;
+  for (const ModelAttackSpec& spec : options.model_attacks) {
+    num_attacks += AttackRendersPerDraw(spec) ? options.attack_draws : 1;
+  }
   ProgressBar progress("eval", int64_t(n * (1 + num_attacks)));
   const auto step = [&](int64_t done, const std::string& what) {
     if (options.show_progress) progress.Update(done, what);
@@ -208,19 +262,26 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
       ExtractWatermark(rasterizer, raw, cameras, report.view_names, decoder,
                        nullptr, options.background, options.thresholds)
           .views;
-  const auto add_row = [&](std::string model, std::string attack,
-                           std::string kind, size_t gaussians, Row row) {
-    ExtractionResult owner = AggregateViews(
-        DifferenceViews(row.extraction.views, raw_views, &message),
-        decoder.NumBits(), &message, options.thresholds);
+  const auto owner_of = [&](const ExtractionResult& extraction) {
     done += int64_t(n);
+    return AggregateViews(
+        DifferenceViews(extraction.views, raw_views, &message),
+        decoder.NumBits(), &message, options.thresholds);
+  };
+  // `draws`: the figures of the draws after the first (random attacks).
+  const auto add_row = [&](std::string model, std::string attack,
+                           std::string kind, size_t gaussians, Row row,
+                           std::vector<AttackDraw> draws = {}) {
+    ExtractionResult owner = owner_of(row.extraction);
+    draws.insert(draws.begin(), ReadDraw(row.extraction, owner));
     char status[96];
     std::snprintf(status, sizeof(status), "%s BER %.1f%%", attack.c_str(),
                   100 * row.extraction.ber);
     step(done, status);
-    report.robustness.push_back(
-        {std::move(model), std::move(attack), std::move(kind), gaussians,
-         std::move(row.extraction), std::move(owner), row.psnr});
+    report.robustness.push_back({std::move(model), std::move(attack),
+                                 std::move(kind), gaussians,
+                                 std::move(row.extraction), std::move(owner),
+                                 row.psnr, std::move(draws)});
   };
   // The cameras an attack that renders the scene (prune_significance) sees:
   // the views not evaluated, the training split when the evaluated ones are
@@ -236,17 +297,28 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
   }
   for (size_t a = 0; a < options.model_attacks.size(); ++a) {
     const ModelAttackSpec& spec = options.model_attacks[a];
-    std::mt19937_64 rng(options.seed + a);
-    GaussianModel attacked;
-    std::vector<uint32_t> source;
-    ApplyModelAttack(spec, watermarked, rng, &attacked, &source,
-                     &training_cameras);
     std::vector<RenderCamera> moved = cameras;
     if (spec.kind == ModelAttackKind::kSimilarity) {
       for (RenderCamera& c : moved) c = TransformCamera(c, spec.similarity);
     }
-    add_row("watermarked", ToString(spec), "3d", attacked.size(),
-            extract(attacked, moved, {}));
+    const auto draw = [&](int d) {
+      std::mt19937_64 rng = DrawRng(options.seed, a, d);
+      GaussianModel attacked;
+      std::vector<uint32_t> source;
+      ApplyModelAttack(spec, watermarked, rng, &attacked, &source,
+                       &training_cameras);
+      return std::make_pair(attacked.size(), extract(attacked, moved, {}));
+    };
+    const int num_draws = AttackRendersPerDraw(spec) ? options.attack_draws : 1;
+    auto [gaussians, first] = draw(0);
+    std::vector<AttackDraw> later;
+    for (int d = 1; d < num_draws; ++d) {
+      const ExtractionResult blind = draw(d).second.extraction;
+      later.push_back(ReadDraw(blind, owner_of(blind)));
+      step(done, ToString(spec) + " draw " + std::to_string(d + 1));
+    }
+    add_row("watermarked", ToString(spec), "3d", gaussians, std::move(first),
+            std::move(later));
   }
   for (const ImageAttackSpec& spec : options.image_attacks) {
     const RenderAttack attack = [spec](const ImageRGB& image) {
@@ -275,6 +347,7 @@ std::string EvaluationToJson(const EvaluationReport& r) {
   j["lpips_note"] = r.lpips_note;
   j["ground_truth_note"] = r.ground_truth_note;
   j["seconds"] = r.seconds;
+  j["attack_draws"] = r.attack_draws;
   nlohmann::json quality = nlohmann::json::array();
   for (const QualityComparison* c :
        {&r.vs_ground_truth, &r.vs_raw, &r.raw_vs_ground_truth}) {
@@ -318,10 +391,56 @@ std::string EvaluationToJson(const EvaluationReport& r) {
                         {"max", row.owner.max_view_ber}}},
                       {"p_value", row.owner.p_value},
                       {"verdict", ToString(row.owner.verdict)}}}});
+    if (row.draws.size() > 1) rows.back()["draws"] = DrawsJson(row.draws);
   }
   j["robustness"] = rows;
   return j.dump(2) + "\n";
 }
+
+namespace {
+
+// The rows drawn more than once: each figure's mean and range over draws.
+std::string DrawsMarkdown(const EvaluationReport& r) {
+  std::ostringstream out;
+  const auto cell = [](const DrawSpread& s, double scale, const char* format) {
+    return Format(format, scale * s.mean) + " (" +
+           Format(format, scale * s.min) + "-" + Format(format, scale * s.max) +
+           ")";
+  };
+  for (const RobustnessRow& row : r.robustness) {
+    if (row.draws.size() < 2) continue;
+    if (out.tellp() == 0) {
+      out << "\n## Over " << r.attack_draws
+          << " draws of each random attack (mean (min-max) over draws)\n\n"
+          << "| Attack | Single view BER mean (%) | Bit errors | Owner: "
+             "single view BER mean (%) | Owner: bit errors |\n"
+          << "|---|---:|---:|---:|---:|\n";
+    }
+    const auto& d = row.draws;
+    out << "| " << row.attack << " | "
+        << cell(SpreadOver(d, [](const AttackDraw& x) { return x.view_ber; }),
+                100, "%.2f")
+        << " | "
+        << cell(
+               SpreadOver(
+                   d, [](const AttackDraw& x) { return double(x.bit_errors); }),
+               1, "%.1f")
+        << " | "
+        << cell(SpreadOver(
+                    d, [](const AttackDraw& x) { return x.owner_view_ber; }),
+                100, "%.2f")
+        << " | "
+        << cell(SpreadOver(d,
+                           [](const AttackDraw& x) {
+                             return double(x.owner_bit_errors);
+                           }),
+                1, "%.1f")
+        << " |\n";
+  }
+  return out.str();
+}
+
+}  // namespace
 
 std::string EvaluationToMarkdown(const EvaluationReport& r) {
   std::ostringstream out;
@@ -378,6 +497,7 @@ std::string EvaluationToMarkdown(const EvaluationReport& r) {
         << Format("%.1f", 100 * e.median_view_ber) << " / "
         << Format("%.1f", 100 * e.p90_view_ber) << " |\n";
   }
+  out << DrawsMarkdown(r);
   return out.str();
 }
 

@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -44,8 +45,12 @@ struct EvaluationOptions {
   std::vector<ImageAttackSpec> image_attacks = DefaultImageAttacks();
   // Verdict thresholds.
   VerificationThresholds thresholds;
-  // Seeds the random attacks (attack k uses seed + k).
+  // Seeds the random attacks (attack k's first draw uses seed + k).
   uint64_t seed = 0;
+  // Draws of each attack whose renders depend on the draw
+  // (AttackRendersPerDraw): the paper's Table 1 reads one; a crop removes
+  // one contiguous run of the file, so one draw is a sample, not a bound.
+  int attack_draws = 1;
   // LPIPS network, or null: the LPIPS column is then empty, `lpips_note`
   // says why.
   Lpips* lpips = nullptr;
@@ -78,6 +83,21 @@ struct QualityComparison {
   std::vector<QualityMetrics> per_view;
 };
 
+// One draw of an attack, read blind and as the owner.
+struct AttackDraw {
+  // Mean over views of each view's BER (the paper's per-image BER).
+  double view_ber = 0, owner_view_ber = 0;
+  // Wrong bits of the mean logits over the views.
+  int bit_errors = 0, owner_bit_errors = 0;
+};
+
+// Mean, smallest and largest of a figure over draws.
+struct DrawSpread {
+  double mean = 0, min = 0, max = 0;
+};
+DrawSpread SpreadOver(const std::vector<AttackDraw>& draws,
+                      const std::function<double(const AttackDraw&)>& figure);
+
 // The watermark under one attack.
 struct RobustnessRow {
   // "watermarked" or "raw" (the false-positive check).
@@ -96,6 +116,9 @@ struct RobustnessRow {
   // renders, after the image attack) against the ground truth: a row whose
   // scene is gone reads as such. NaN without ground truth.
   double psnr = NAN;
+  // Every draw's figures, the first being `extraction` and `owner`'s (one
+  // entry unless the attack renders per draw and attack_draws > 1).
+  std::vector<AttackDraw> draws;
 };
 
 struct EvaluationReport {
@@ -116,6 +139,8 @@ struct EvaluationReport {
   std::vector<RobustnessRow> robustness;
   // Verdict thresholds used.
   VerificationThresholds thresholds;
+  // Draws of each attack that renders per draw.
+  int attack_draws = 1;
   // Wall time of the evaluation.
   double seconds = 0;
 };

@@ -85,7 +85,7 @@ int RunEval(int argc, char** argv) {
   std::string lpips_path = "data/lpips/lpips_vgg.bin";
   std::string which_views = "test", background = "0,0,0";
   WorkspaceOptions workspace_options;
-  int max_views = 0, num_threads = 0;
+  int max_views = 0, num_threads = 0, attack_draws = 1;
   int64_t seed = 0;
   double present_p = VerificationThresholds().present_p;
   OptionParser parser(
@@ -131,6 +131,10 @@ int RunEval(int argc, char** argv) {
              "p-value at or below which the watermark is declared present");
   parser.Add("background", &background, "r,g,b, black or white");
   parser.Add("seed", &seed, "Seed of the random attacks");
+  parser.Add("attack_draws", &attack_draws,
+             "Draws of each random 3D attack (gn, dropout, crop); above 1, "
+             "a table gives each figure's mean and range over the draws (the "
+             "main tables stay the first draw, the paper's protocol)");
   parser.Add("num_threads", &num_threads, "Threads (0 = all cores)");
   parser.Add("report", &report_path,
              "Also write the ownership report (HTML, see watergs report) of "
@@ -144,6 +148,9 @@ int RunEval(int argc, char** argv) {
     Fail("eval: --reading owner or blind");
   }
   if (max_views < 0) Fail("eval: --max_views must be >= 0");
+  if (attack_draws < 1 || attack_draws > 1000) {
+    Fail("eval: --attack_draws must be in [1, 1000]");
+  }
   if (!(present_p > 0 && present_p < 0.01)) {
     Fail("eval: --false_positive_rate must be in (0, 0.01)");
   }
@@ -171,6 +178,7 @@ int RunEval(int argc, char** argv) {
   options.background = ParseBackground(background);
   options.thresholds.present_p = present_p;
   options.seed = uint64_t(seed);
+  options.attack_draws = attack_draws;
   options.show_progress = true;
   const ModelData raw = ReadModelFile(raw_path);
   const ModelData watermarked = ReadModelFile(input_path);

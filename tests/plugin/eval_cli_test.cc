@@ -185,6 +185,63 @@ TEST(EvalCli, WritesQualityAndRobustnessReports) {
   EXPECT_FALSE(std::filesystem::exists(bad + ".json"));
 }
 
+// --attack_draws N: the random 3D attacks are drawn N times; the main rows
+// stay the first draw (the paper's one-draw protocol), a "draws" entry and a
+// Markdown table give each figure's mean and range over the draws.
+TEST(EvalCli, DrawsRandomAttacksManyTimesKeepingTheFirstDrawAsTheRow) {
+  TempDir dir("eval_draws");
+  const Scene s = MakeScene(dir);
+  const std::string base =
+      WatergsBin() + " eval --raw_path " + s.raw + " --input_path " + s.wm +
+      " --workspace_path " + s.ws + " --decoder " + s.decoder +
+      " --message hex:a5c3 --num_threads 2 --lpips_weights '' "
+      "--image_attacks '' --attacks identity,crop:0.3,sh0";
+  const auto one = RunCommand(base + " --output_path " + (dir / "one"));
+  ASSERT_EQ(one.exit_code, 0) << one.output;
+  const auto many =
+      RunCommand(base + " --attack_draws 6 --output_path " + (dir / "many"));
+  ASSERT_EQ(many.exit_code, 0) << many.output;
+  const auto rows_one = ReadJson(dir / "one.json")["robustness"];
+  const auto j = ReadJson(dir / "many.json");
+  EXPECT_EQ(j["attack_draws"], 6);
+  const auto rows = j["robustness"];
+  ASSERT_EQ(rows.size(), 4u);
+  // Only the attack whose renders depend on the draw is drawn again.
+  EXPECT_FALSE(rows[0].contains("draws"));
+  EXPECT_FALSE(rows[2].contains("draws"));
+  const auto& crop = rows[1];
+  ASSERT_EQ(crop["attack"], "crop:0.3");
+  ASSERT_TRUE(crop.contains("draws"));
+  EXPECT_EQ(crop["draws"]["count"], 6);
+  EXPECT_EQ(crop["recovered_hex"], rows_one[1]["recovered_hex"]);
+  EXPECT_EQ(crop["owner"]["view_ber"]["mean"],
+            rows_one[1]["owner"]["view_ber"]["mean"]);
+  for (const char* reading : {"blind", "owner"}) {
+    const auto& row = std::string(reading) == "owner" ? crop["owner"] : crop;
+    const auto& draws = std::string(reading) == "owner" ? crop["draws"]["owner"]
+                                                        : crop["draws"];
+    const double first = row["view_ber"]["mean"].get<double>();
+    const double low = draws["view_ber"]["min"].get<double>();
+    const double high = draws["view_ber"]["max"].get<double>();
+    const double mean = draws["view_ber"]["mean"].get<double>();
+    EXPECT_LE(low, first) << reading;
+    EXPECT_GE(high, first) << reading;
+    EXPECT_LE(low, mean) << reading;
+    EXPECT_GE(high, mean) << reading;
+  }
+  // A crop removes another run of the file each draw: the owner's reading
+  // (the difference from the raw renders) changes between draws. (The tiny
+  // decoder's blind reading is set by the scene and reads the same.)
+  EXPECT_LT(crop["draws"]["owner"]["view_ber"]["min"].get<double>(),
+            crop["draws"]["owner"]["view_ber"]["max"].get<double>());
+  EXPECT_NE(many.output.find("## Over 6 draws of each random attack"),
+            std::string::npos)
+      << many.output;
+  EXPECT_NE(many.output.find("| crop:0.3 | "), std::string::npos);
+  EXPECT_EQ(one.output.find("draws of each random attack"), std::string::npos);
+  ExpectOneLineError(RunCommand(base + " --attack_draws 0"), "--attack_draws");
+}
+
 TEST(AttackCli, NewAttacksKeepTheLayoutAndExtractFollowsTheTransform) {
   TempDir dir("attack_cli");
   const Scene s = MakeScene(dir);

@@ -375,7 +375,10 @@ TEST(Embedder, OwnerReadingEmbedsTheDifferenceFromTheInput) {
   auto rasterizer = MakeCpuRasterizer();
   double direct = 0;
   int seen = 0, seen_wrong = 0;
-  for (size_t v : s.train) {
+  // The check keeps each camera's reading (no free check views here).
+  ASSERT_EQ(after.logits.size(), s.train.size());
+  for (size_t k = 0; k < s.train.size(); ++k) {
+    const size_t v = s.train[k];
     ImageRGB a, b;
     rasterizer->Forward(embedder.model(), s.views.Camera(v), {}, &a, nullptr);
     rasterizer->Forward(s.model, s.views.Camera(v), {}, &b, nullptr);
@@ -394,6 +397,11 @@ TEST(Embedder, OwnerReadingEmbedsTheDifferenceFromTheInput) {
       }
     }
     direct += double(errors) / message.size() / s.train.size();
+    int check_errors = 0;
+    for (size_t i = 0; i < message.size(); ++i) {
+      check_errors += (after.logits[k][i] > 0) != message[i];
+    }
+    EXPECT_EQ(check_errors, errors) << "view " << v;
   }
   EXPECT_NEAR(after.mean_ber, direct, 1e-12);
   EXPECT_GE(seen, 16) << "the decoder sees too few bits for a test";
