@@ -2,7 +2,6 @@
 #include "watermark/cuda/cuda_feature_decoder.h"
 
 #include <algorithm>
-#include <cstring>
 #include <string>
 
 #include "gaussian/cuda/cuda_check.h"
@@ -42,8 +41,9 @@ CudaFeatureDecoder::CudaFeatureDecoder(FeatureNet& net, bool allow_tf32)
 
 CudaFeatureDecoder::~CudaFeatureDecoder() = default;
 
-void CudaFeatureDecoder::ForwardDevice(const float* image_hwc, int width,
-                                       int height, int pitch) {
+std::vector<float> CudaFeatureDecoder::ForwardDevice(const float* image_hwc,
+                                                     int width, int height,
+                                                     int pitch) {
   const int p = config_.pool;
   // FeatureNet::Forward's check and message.
   if (width < p || height < p)
@@ -74,8 +74,10 @@ void CudaFeatureDecoder::ForwardDevice(const float* image_hwc, int width,
       conv_out_.ptr(), config_.channels, conv_out_.PlaneSize(),
       features_.ptr()));
   linear_->Forward(features_, &logits_dev_);
-  logits_dev_.data.Download(&logits_);
-  logits_.resize(config_.num_bits);
+  std::vector<float> logits;
+  logits_dev_.data.Download(&logits);
+  logits.resize(config_.num_bits);
+  return logits;
 }
 
 void CudaFeatureDecoder::BackwardDevice(const std::vector<float>& dlogits,
@@ -103,85 +105,6 @@ void CudaFeatureDecoder::BackwardDevice(const std::vector<float>& dlogits,
   WATERGS_CUDA_CHECK(feature_kernels::PooledGradientToImage(
       dpooled_.ptr(), width_, height_, pitch, config_.pool, accumulate,
       dimage_hwc));
-}
-
-void CudaFeatureDecoder::ForwardIfNeeded(const ImageRGB& image) {
-  const size_t count = image.data.size();
-  if (image.width <= 0 || image.height <= 0 ||
-      count != size_t(image.width) * image.height * 3)
-    Fail("decoder: image of " + std::to_string(image.width) + "x" +
-         std::to_string(image.height) + " with " + std::to_string(count) +
-         " values");
-  if (has_forward_ && cached_width_ == image.width &&
-      cached_height_ == image.height &&
-      std::memcmp(cached_pixels_.data(), image.data.data(),
-                  count * sizeof(float)) == 0)
-    return;
-  // Invalid until the pass completes: a failed pass must not leave the old
-  // logits answering for the new image.
-  has_forward_ = patch_forward_ = false;
-  image_.Upload(image.data);
-  ForwardDevice(image_.data(), image.width, image.height, image.width);
-  cached_pixels_.assign(image.data.begin(), image.data.end());
-  cached_width_ = image.width;
-  cached_height_ = image.height;
-  has_forward_ = true;
-}
-
-std::vector<float> CudaFeatureDecoder::Logits(const ImageRGB& image) {
-  ForwardIfNeeded(image);
-  return logits_;
-}
-
-void CudaFeatureDecoder::InputGradient(const ImageRGB& image,
-                                       const std::vector<float>& dlogits,
-                                       ImageRGB* dimage) {
-  CheckLogitGradients(dlogits.size());
-  ForwardIfNeeded(image);
-  dimage_.Resize(image.data.size());
-  BackwardDevice(dlogits, dimage_.data(), image.width, false);
-  dimage_.Download(&dimage->data);
-  dimage->width = image.width;
-  dimage->height = image.height;
-}
-
-namespace {
-
-// Checks that `rect` lies in an image `pitch` pixels wide (its height is the
-// caller's to check) and returns the offset of its first value.
-size_t PatchOffset(int pitch, const PixelRect& rect) {
-  if (rect.width <= 0 || rect.height <= 0 || rect.x0 < 0 || rect.y0 < 0 ||
-      rect.x0 + rect.width > pitch) {
-    Fail("decoder: patch " + std::to_string(rect.width) + "x" +
-         std::to_string(rect.height) + " at (" + std::to_string(rect.x0) +
-         ", " + std::to_string(rect.y0) + ") outside an image " +
-         std::to_string(pitch) + " pixels wide");
-  }
-  return (size_t(rect.y0) * pitch + rect.x0) * 3;
-}
-
-}  // namespace
-
-std::vector<float> CudaFeatureDecoder::LogitsDevicePatch(
-    const float* image_hwc, int pitch, const PixelRect& rect) {
-  const size_t offset = PatchOffset(pitch, rect);
-  has_forward_ = patch_forward_ = false;
-  ForwardDevice(image_hwc + offset, rect.width, rect.height, pitch);
-  patch_forward_ = true;
-  patch_ = rect;
-  return logits_;
-}
-
-void CudaFeatureDecoder::AddInputGradientDevicePatch(
-    const std::vector<float>& dlogits, float* dimage_hwc, int pitch,
-    const PixelRect& rect) {
-  if (!patch_forward_ || rect.x0 != patch_.x0 || rect.y0 != patch_.y0 ||
-      rect.width != patch_.width || rect.height != patch_.height) {
-    Fail(
-        "decoder: input gradient of a patch the last forward pass did not "
-        "decode");
-  }
-  BackwardDevice(dlogits, dimage_hwc + PatchOffset(pitch, rect), pitch, true);
 }
 
 }  // namespace watergs

@@ -36,30 +36,20 @@ class CudaFeatureDecoder : public DevicePatchDecoder {
   CudaFeatureDecoder(const CudaFeatureDecoder&) = delete;
   CudaFeatureDecoder& operator=(const CudaFeatureDecoder&) = delete;
 
+  // Images of at least pool x pool pixels (Logits, InputGradient).
   int NumBits() const override { return config_.num_bits; }
-  // image (at least pool x pool pixels) -> L logits.
-  std::vector<float> Logits(const ImageRGB& image) override;
-  // Re-runs the forward pass only when `image` differs from the last one.
-  void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
-                     ImageRGB* dimage) override;
-  std::vector<float> LogitsDevicePatch(const float* image_hwc, int pitch,
-                                       const PixelRect& rect) override;
-  void AddInputGradientDevicePatch(const std::vector<float>& dlogits,
-                                   float* dimage_hwc, int pitch,
-                                   const PixelRect& rect) override;
 
  private:
   // Pooled network input from a width x height device HWC patch with rows
-  // `pitch` pixels apart, then the forward pass into logits_.
-  void ForwardDevice(const float* image_hwc, int width, int height, int pitch);
+  // `pitch` pixels apart, then the forward pass.
+  std::vector<float> ForwardDevice(const float* image_hwc, int width,
+                                   int height, int pitch) override;
   // Backward of the last forward pass into dimage_hwc (the same patch
   // layout), overwriting or adding.
   void BackwardDevice(const std::vector<float>& dlogits, float* dimage_hwc,
-                      int pitch, bool accumulate);
+                      int pitch, bool accumulate) override;
   // Values in one convolution window: 3 k^2.
   int ConvTaps() const { return 3 * config_.kernel * config_.kernel; }
-  // Runs the forward pass unless `image` is the cached input.
-  void ForwardIfNeeded(const ImageRGB& image);
 
   FeatureDecoderConfig config_;
   // The handles (declared before the layers that point into them).
@@ -67,8 +57,6 @@ class CudaFeatureDecoder : public DevicePatchDecoder {
   // Convolution weights [channels, 3 k^2 + 1] (the bias last in each row).
   DeviceBuffer<float> conv_weights_;
   std::unique_ptr<CudaLinear> linear_;
-  // Uploaded host image and its gradient (HWC).
-  DeviceBuffer<float> image_, dimage_;
   // Activations of the last forward pass and gradient scratch.
   DeviceTensor pooled_, conv_out_, features_, logits_dev_, dlogits_, dfeatures_,
       dconv_, dpooled_;
@@ -76,13 +64,6 @@ class CudaFeatureDecoder : public DevicePatchDecoder {
   DeviceBuffer<float> cols_, dcols_;
   // Size of the last forward pass's patch.
   int width_ = 0, height_ = 0;
-  // The host image of the last forward pass and its logits.
-  std::vector<float> cached_pixels_, logits_;
-  int cached_width_ = 0, cached_height_ = 0;
-  // Whether the activations are of the cached host image, or of a
-  // LogitsDevicePatch call (and its rect).
-  bool has_forward_ = false, patch_forward_ = false;
-  PixelRect patch_;
 };
 
 }  // namespace watergs

@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <utility>
 
 #include "gaussian/cuda/cuda_check.h"
@@ -256,19 +255,12 @@ CudaDecoder::CudaDecoder(CudaDecoder&& other) noexcept {
 // saved a pointer to the source's input_, which a later InputGradient would
 // read (once the source is gone, with garbage shapes).
 CudaDecoder& CudaDecoder::operator=(CudaDecoder&& other) noexcept {
+  DevicePatchDecoder::operator=(std::move(other));
   network_ = std::move(other.network_);  // before the context it points into
   context_ = std::move(other.context_);
-  image_ = std::move(other.image_);
-  dimage_ = std::move(other.dimage_);
   input_ = std::move(other.input_);
   dlogits_ = std::move(other.dlogits_);
   dinput_ = std::move(other.dinput_);
-  cached_pixels_ = std::move(other.cached_pixels_);
-  logits_ = std::move(other.logits_);
-  cached_width_ = other.cached_width_;
-  cached_height_ = other.cached_height_;
-  has_forward_ = other.has_forward_ = false;
-  patch_forward_ = other.patch_forward_ = false;
   return *this;
 }
 
@@ -276,13 +268,14 @@ CudaDecoder::~CudaDecoder() = default;
 
 int CudaDecoder::NumBits() const { return network_->num_bits(); }
 
-void CudaDecoder::ForwardDevice(const float* image_hwc, int width, int height,
-                                int pitch) {
+std::vector<float> CudaDecoder::ForwardDevice(const float* image_hwc, int width,
+                                              int height, int pitch) {
   input_.Resize(1, 3, height, width);
   WATERGS_CUDA_CHECK(
       nn_kernels::ImageToInput(image_hwc, width, height, pitch, input_.ptr()));
-  const DeviceTensor& logits = network_->Forward(input_, false);
-  logits.data.Download(&logits_);
+  std::vector<float> logits;
+  network_->Forward(input_, false).data.Download(&logits);
+  return logits;
 }
 
 void CudaDecoder::BackwardDevice(const std::vector<float>& dlogits,
@@ -296,46 +289,6 @@ void CudaDecoder::BackwardDevice(const std::vector<float>& dlogits,
       dinput_.ptr(), dinput_.w, dinput_.h, pitch, accumulate, dimage_hwc));
 }
 
-void CudaDecoder::ForwardIfNeeded(const ImageRGB& image) {
-  const size_t count = image.data.size();
-  if (image.width <= 0 || image.height <= 0 ||
-      count != size_t(image.width) * image.height * 3)
-    Fail("decoder: image of " + std::to_string(image.width) + "x" +
-         std::to_string(image.height) + " with " + std::to_string(count) +
-         " values");
-  if (has_forward_ && cached_width_ == image.width &&
-      cached_height_ == image.height &&
-      std::memcmp(cached_pixels_.data(), image.data.data(),
-                  count * sizeof(float)) == 0)
-    return;
-  // Invalid until the pass below completes: a failed pass must not leave
-  // the old logits answering for the new image.
-  has_forward_ = patch_forward_ = false;
-  cached_pixels_.assign(image.data.begin(), image.data.end());
-  cached_width_ = image.width;
-  cached_height_ = image.height;
-  image_.Upload(image.data);
-  ForwardDevice(image_.data(), image.width, image.height, image.width);
-  has_forward_ = true;
-}
-
-std::vector<float> CudaDecoder::Logits(const ImageRGB& image) {
-  ForwardIfNeeded(image);
-  return logits_;
-}
-
-void CudaDecoder::InputGradient(const ImageRGB& image,
-                                const std::vector<float>& dlogits,
-                                ImageRGB* dimage) {
-  CheckLogitGradients(dlogits.size());
-  ForwardIfNeeded(image);
-  dimage_.Resize(image.data.size());
-  BackwardDevice(dlogits, dimage_.data(), image.width, false);
-  dimage_.Download(&dimage->data);
-  dimage->width = image.width;
-  dimage->height = image.height;
-}
-
 ImageRGB CudaDecoder::InputGradient(const ImageRGB& image,
                                     const std::vector<float>& dlogits) {
   ImageRGB dimage;
@@ -345,14 +298,7 @@ ImageRGB CudaDecoder::InputGradient(const ImageRGB& image,
 
 std::vector<float> CudaDecoder::LogitsDevice(const float* image_hwc, int width,
                                              int height) {
-  if (width <= 0 || height <= 0)
-    Fail("decoder: image of " + std::to_string(width) + "x" +
-         std::to_string(height));
-  // The activations will no longer be those of the cached host image or
-  // of a patch.
-  has_forward_ = patch_forward_ = false;
-  ForwardDevice(image_hwc, width, height, width);
-  return logits_;
+  return ForwardUncached(image_hwc, width, height);
 }
 
 void CudaDecoder::InputGradientDevice(const float* image_hwc, int width,
@@ -361,46 +307,6 @@ void CudaDecoder::InputGradientDevice(const float* image_hwc, int width,
                                       float* dimage_hwc) {
   LogitsDevice(image_hwc, width, height);
   BackwardDevice(dlogits, dimage_hwc, width, false);
-}
-
-namespace {
-
-// Checks that `rect` lies in an image `pitch` pixels wide (its height is the
-// caller's to check) and returns the offset of its first value.
-size_t PatchOffset(int pitch, const PixelRect& rect) {
-  if (rect.width <= 0 || rect.height <= 0 || rect.x0 < 0 || rect.y0 < 0 ||
-      rect.x0 + rect.width > pitch) {
-    Fail("decoder: patch " + std::to_string(rect.width) + "x" +
-         std::to_string(rect.height) + " at (" + std::to_string(rect.x0) +
-         ", " + std::to_string(rect.y0) + ") outside an image " +
-         std::to_string(pitch) + " pixels wide");
-  }
-  return (size_t(rect.y0) * pitch + rect.x0) * 3;
-}
-
-}  // namespace
-
-std::vector<float> CudaDecoder::LogitsDevicePatch(const float* image_hwc,
-                                                  int pitch,
-                                                  const PixelRect& rect) {
-  const size_t offset = PatchOffset(pitch, rect);
-  has_forward_ = patch_forward_ = false;
-  ForwardDevice(image_hwc + offset, rect.width, rect.height, pitch);
-  patch_forward_ = true;
-  patch_ = rect;
-  return logits_;
-}
-
-void CudaDecoder::AddInputGradientDevicePatch(const std::vector<float>& dlogits,
-                                              float* dimage_hwc, int pitch,
-                                              const PixelRect& rect) {
-  if (!patch_forward_ || rect.x0 != patch_.x0 || rect.y0 != patch_.y0 ||
-      rect.width != patch_.width || rect.height != patch_.height) {
-    Fail(
-        "decoder: input gradient of a patch the last forward pass did not "
-        "decode");
-  }
-  BackwardDevice(dlogits, dimage_hwc + PatchOffset(pitch, rect), pitch, true);
 }
 
 }  // namespace watergs

@@ -128,12 +128,8 @@ class CudaDecoder : public DevicePatchDecoder {
 
   // Message length L.
   int NumBits() const override;
-  // image (any size >= 1x1) -> L logits.
-  std::vector<float> Logits(const ImageRGB& image) override;
-  // image, dLoss/dLogits (L values) -> dLoss/dImage (same size as image).
-  // Re-runs the forward pass only when `image` differs from the last one.
-  void InputGradient(const ImageRGB& image, const std::vector<float>& dlogits,
-                     ImageRGB* dimage) override;
+  // Logits and InputGradient of any image >= 1x1: DevicePatchDecoder's.
+  using DevicePatchDecoder::InputGradient;
   ImageRGB InputGradient(const ImageRGB& image,
                          const std::vector<float>& dlogits);
 
@@ -145,42 +141,22 @@ class CudaDecoder : public DevicePatchDecoder {
   void InputGradientDevice(const float* image_hwc, int width, int height,
                            const std::vector<float>& dlogits,
                            float* dimage_hwc);
-  // The embedder's device path: the logits of the `rect` patch of a device
-  // HWC image whose rows are `pitch` pixels wide (the rect's height is the
-  // caller's to check), then, with no decoder call between, dLoss/dPatch
-  // added into the same rect of `dimage_hwc` (same layout): no crop copy,
-  // no separate gradient image.
-  std::vector<float> LogitsDevicePatch(const float* image_hwc, int pitch,
-                                       const PixelRect& rect) override;
-  void AddInputGradientDevicePatch(const std::vector<float>& dlogits,
-                                   float* dimage_hwc, int pitch,
-                                   const PixelRect& rect) override;
 
  private:
   // Network input from a width x height device HWC patch with rows `pitch`
   // pixels apart, then the forward pass.
-  void ForwardDevice(const float* image_hwc, int width, int height, int pitch);
+  std::vector<float> ForwardDevice(const float* image_hwc, int width,
+                                   int height, int pitch) override;
   // Backward to the network input, then into dimage_hwc (same patch layout),
   // overwriting or adding.
   void BackwardDevice(const std::vector<float>& dlogits, float* dimage_hwc,
-                      int pitch, bool accumulate);
-  // Runs the forward pass unless `image` is the cached input.
-  void ForwardIfNeeded(const ImageRGB& image);
+                      int pitch, bool accumulate) override;
 
   // The handles (declared first: the network's layers point into it).
   std::unique_ptr<CudaNnContext> context_;
   std::unique_ptr<CudaHiddenDecoder> network_;
-  // Uploaded image (HWC), network input, gradients, image gradient (HWC).
-  DeviceBuffer<float> image_, dimage_;
+  // Network input and the gradients.
   DeviceTensor input_, dlogits_, dinput_;
-  // The host image of the last forward pass and its logits.
-  std::vector<float> cached_pixels_, logits_;
-  // Size of the cached image; whether the activations are of it.
-  int cached_width_ = 0, cached_height_ = 0;
-  bool has_forward_ = false;
-  // Whether the activations are of a LogitsDevicePatch call, and its rect.
-  bool patch_forward_ = false;
-  PixelRect patch_;
 };
 
 }  // namespace watergs
