@@ -150,9 +150,12 @@ OwnershipReport CollectOwnershipReport(
         rasterizer, suspects[k], raw, cameras, evaluation.view_names, decoder,
         &message, options.background, options.thresholds, {},
         options.ground_truth ? psnr.Observer() : DecodedViewObserver{});
+    const AttackDraw draw{found.blind.mean_view_ber, found.owner.mean_view_ber,
+                          found.blind.bit_errors, found.owner.bit_errors};
     evaluation.robustness.push_back({"file", request.suspect_paths[k], "file",
                                      suspects[k].size(), std::move(found.blind),
-                                     std::move(found.owner), psnr.Mean()});
+                                     std::move(found.owner), psnr.Mean(),
+                                     {draw}});
   }
 
   // Views shown in full, spread evenly; their metrics are the evaluation's.

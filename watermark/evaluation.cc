@@ -71,7 +71,9 @@ std::string Format(const char* format, double value) {
 // draw keeps the seed + k of one-draw evaluations.
 std::mt19937_64 DrawRng(uint64_t seed, size_t attack, int draw) {
   if (draw == 0) return std::mt19937_64(seed + attack);
-  std::seed_seq seq{seed, uint64_t(attack), uint64_t(draw)};
+  // seed_seq keeps 32 bits of each value: the seed goes in as two.
+  std::seed_seq seq{uint32_t(seed), uint32_t(seed >> 32), uint32_t(attack),
+                    uint32_t(draw)};
   return std::mt19937_64(seq);
 }
 
