@@ -152,9 +152,13 @@ OwnershipReport CollectOwnershipReport(
         options.ground_truth ? psnr.Observer() : DecodedViewObserver{});
     const AttackDraw draw{found.blind.mean_view_ber, found.owner.mean_view_ber,
                           found.blind.bit_errors, found.owner.bit_errors};
-    evaluation.robustness.push_back({"file", request.suspect_paths[k], "file",
-                                     suspects[k].size(), std::move(found.blind),
-                                     std::move(found.owner), psnr.Mean(),
+    evaluation.robustness.push_back({"file",
+                                     request.suspect_paths[k],
+                                     "file",
+                                     suspects[k].size(),
+                                     std::move(found.blind),
+                                     std::move(found.owner),
+                                     psnr.Mean(),
                                      {draw}});
   }
 
