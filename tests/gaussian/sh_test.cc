@@ -187,7 +187,7 @@ TEST(Sh, RenderedColourFollowsTheRealShDefinitionAndInriasPlyLayout) {
 
   auto rasterizer = MakeCpuRasterizer();
   const double alpha = 1 / (1 + std::exp(-double(opacity_logit)));
-  for (const Eigen::Vector3d center :
+  for (const Eigen::Vector3d& center :
        {Eigen::Vector3d(3, 0, 0.5), Eigen::Vector3d(-1, 2.5, -1.2),
         Eigen::Vector3d(0.3, -2, 2.2), Eigen::Vector3d(-2, -1.5, 0.4),
         Eigen::Vector3d(1.5, 1.5, -2)}) {
