@@ -77,12 +77,17 @@ bool DistortionChoice::Review(
   return true;
 }
 
-std::string DistortionChoice::Summary() const {
+std::string DistortionChoice::Summary(int64_t last_iteration) const {
   std::string text;
   char part[160];
   for (const DistortionCandidate& c : candidates_) {
     const std::string name = ToString(c.spec);
-    if (c.simulated()) {
+    if (c.simulated() && last_iteration >= 0 && c.since >= last_iteration) {
+      std::snprintf(part, sizeof(part),
+                    "%s short at the last check (iteration %lld): never "
+                    "simulated",
+                    name.c_str(), static_cast<long long>(c.since));
+    } else if (c.simulated()) {
       std::snprintf(part, sizeof(part), "%s from iteration %lld", name.c_str(),
                     static_cast<long long>(c.since));
     } else if (c.reviewed_at < 0) {

@@ -75,8 +75,10 @@ class DistortionChoice {
               const std::vector<std::vector<float>>& distorted);
 
   // Per candidate: simulated from which iteration, not needed, or never
-  // reviewed, with the latest review's figures.
-  std::string Summary() const;
+  // reviewed, with the latest review's figures. Given the run's last
+  // iteration, a layer turned on there is said to be short but never
+  // simulated.
+  std::string Summary(int64_t last_iteration = -1) const;
   // For a checkpoint: per candidate its turned-on iteration and its short
   // reviews in a row. Restore refuses (false) a list of another length or
   // with values out of range.

@@ -536,7 +536,8 @@ int RunEmbed(int argc, char** argv) {
       options.check_views.size(), 100 * before.mean_ber, 100 * after.mean_ber,
       100 * after.aggregate_ber, before.psnr, after.psnr, psnr_vs_raw);
   if (const DistortionChoice* choice = embedder.distortion_choice()) {
-    std::printf("embed: distortion layers %s\n", choice->Summary().c_str());
+    std::printf("embed: distortion layers %s\n",
+                choice->Summary(embedder.iteration()).c_str());
   }
   PrintTimings(embedder);
   if (a.crop_size > 0 && !a.full_frame_loss) {

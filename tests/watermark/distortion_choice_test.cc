@@ -134,6 +134,13 @@ TEST(DistortionChoice, SummaryNamesEachCandidatesOutcome) {
   EXPECT_NE(summary.find("crop:0.1 short at the latest review only"),
             std::string::npos)
       << summary;
+  // A run that ended at iteration 500 never simulated dropout.
+  EXPECT_NE(choice.Summary(500).find("dropout:0.1 short at the last check "
+                                     "(iteration 500): never simulated"),
+            std::string::npos)
+      << choice.Summary(500);
+  EXPECT_NE(choice.Summary(750).find("dropout:0.1 from iteration 500"),
+            std::string::npos);
   EXPECT_EQ(DistortionChoice(Candidates())
                 .Summary()
                 .find("gn:0.01 not reviewed (the check views never read)"),
