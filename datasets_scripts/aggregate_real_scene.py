@@ -51,16 +51,20 @@ def row_reading(row, reading):
     return source["view_ber"]["mean"], source["bit_errors"]
 
 
-def draws_note(row, reading):
-    """' ; over N draws: mean M% (max X%), agg <= E' for a row eval drew more than once
-    (--attack_draws: the row itself is the first draw), else ''."""
+def draws_note(row, reading, num_bits):
+    """'; N draws: M% (max X%), agg <= E/B, present in K' for a row eval drew more than once
+    (--attack_draws: the row itself is the first draw), else ''. K: the draws whose aggregated
+    views read 'present' (left out for tables written before eval counted verdicts)."""
     if "draws" not in row:
         return ""
     draws = row["draws"]
     source = draws["owner"] if reading == "owner" else draws
     ber, errors = source["view_ber"], source["bit_errors"]
-    return (f"; {draws['count']} draws: {100 * ber['mean']:.2f}% (max {100 * ber['max']:.2f}%), "
-            f"agg <= {errors['max']:.0f}")
+    note = (f"; {draws['count']} draws: {100 * ber['mean']:.2f}% (max {100 * ber['max']:.2f}%), "
+            f"agg <= {errors['max']:.0f}/{num_bits}")
+    if "verdicts" in source:
+        note += f", present in {source['verdicts']['present']}"
+    return note
 
 
 def main(out):
@@ -95,8 +99,9 @@ def main(out):
             cells = []
             for attack in ATTACKS:
                 per_image, errors = row_reading(rows[attack], reading)
-                cells.append(f"{100 * per_image:.2f}% ({errors}/48 agg)" +
-                             draws_note(rows[attack], reading))
+                bits = table["num_bits"]
+                cells.append(f"{100 * per_image:.2f}% ({errors}/{bits} agg)" +
+                             draws_note(rows[attack], reading, bits))
             psnr_raw = f"{raw_q['psnr']:.2f}" if "psnr" in raw_q else "n/a"
             lines.append(f"| {label} | {reading} | " + " | ".join(cells) +
                          f" | {psnr_raw} -> {wm_q['psnr']:.2f} | {wm_q['ssim']:.4f} | {vs_raw:.2f} |")

@@ -55,7 +55,9 @@ class AggregateRealScene(unittest.TestCase):
             spread = {"mean": 0.03125, "min": 0.0, "max": 0.0625}
             rows[3]["draws"] = {"count": 4, "view_ber": spread, "bit_errors": spread,
                                 "owner": {"view_ber": spread,
-                                          "bit_errors": {"mean": 1.5, "min": 0, "max": 3}}}
+                                          "bit_errors": {"mean": 1.5, "min": 0, "max": 3},
+                                          "verdicts": {"present": 3, "inconclusive": 1,
+                                                       "absent": 0}}}
             rows.append({"model": "raw", "attack": "identity", "view_ber": stats([0.9, 0.9]),
                          "bit_errors": 30, "owner": {"view_ber": stats([1.0, 1.0]), "bit_errors": 48}})
             write(f"{run}/table1.json", {"num_bits": 48, "robustness": rows, "quality": [
@@ -74,9 +76,12 @@ class AggregateRealScene(unittest.TestCase):
         blind = next(l for l in text.splitlines() if l.startswith("| owner_seed0 | blind |"))
         # Mean of the views' BERs: owner (0 + 12.5) / 2, blind (50 + 25) / 2.
         self.assertIn("6.25% (1/48 agg)", owner)
-        # The crop row was drawn 4 times: its first draw, then the draws' mean and worst.
-        self.assertIn("6.25% (1/48 agg); 4 draws: 3.12% (max 6.25%), agg <= 3", owner)
+        # The crop row was drawn 4 times: its first draw, then the draws' mean and worst and
+        # how many draws read 'present' (a table from before verdict counts says nothing).
+        self.assertIn("6.25% (1/48 agg); 4 draws: 3.12% (max 6.25%), agg <= 3/48, present in 3",
+                      owner)
         self.assertEqual(owner.count("draws"), 1)
+        self.assertIn("4 draws: 3.12% (max 6.25%), agg <= 0/48 |", blind)
         self.assertIn("37.50% (9/48 agg)", blind)
         self.assertIn("22.00 -> 21.50", owner)
         self.assertIn("| 36.25 |", owner)

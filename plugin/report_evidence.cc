@@ -150,8 +150,7 @@ OwnershipReport CollectOwnershipReport(
         rasterizer, suspects[k], raw, cameras, evaluation.view_names, decoder,
         &message, options.background, options.thresholds, {},
         options.ground_truth ? psnr.Observer() : DecodedViewObserver{});
-    const AttackDraw draw{found.blind.mean_view_ber, found.owner.mean_view_ber,
-                          found.blind.bit_errors, found.owner.bit_errors};
+    const AttackDraw draw = ReadDraw(found.blind, found.owner);
     evaluation.robustness.push_back({"file",
                                      request.suspect_paths[k],
                                      "file",

@@ -77,31 +77,47 @@ std::mt19937_64 DrawRng(uint64_t seed, size_t attack, int draw) {
   return std::mt19937_64(seq);
 }
 
-AttackDraw ReadDraw(const ExtractionResult& blind,
-                    const ExtractionResult& owner) {
-  return {blind.mean_view_ber, owner.mean_view_ber, blind.bit_errors,
-          owner.bit_errors};
-}
-
 nlohmann::json SpreadJson(const DrawSpread& spread) {
   return {{"mean", spread.mean}, {"min", spread.min}, {"max", spread.max}};
 }
 
-// A row's draws: each figure's mean, min and max over them.
+// A draw's figures as the owner (`owner`) or blind.
+nlohmann::json DrawJson(const AttackDraw& d, bool owner) {
+  return {{"view_ber", owner ? d.owner_view_ber : d.view_ber},
+          {"bit_errors", owner ? d.owner_bit_errors : d.bit_errors},
+          {"verdict", ToString(owner ? d.owner_verdict : d.verdict)}};
+}
+
+// A row's draws: each figure's mean, min and max over them, how many draws
+// read each verdict, and every draw's figures in draw order (draw d does not
+// depend on how many were drawn: the first 8 of 32 are an 8-draw run).
 nlohmann::json DrawsJson(const std::vector<AttackDraw>& draws) {
-  const auto spread = [&](auto figure) {
-    return SpreadJson(SpreadOver(draws, figure));
-  };
-  return {{"count", draws.size()},
-          {"view_ber", spread([](const AttackDraw& d) { return d.view_ber; })},
-          {"bit_errors",
-           spread([](const AttackDraw& d) { return double(d.bit_errors); })},
-          {"owner",
-           {{"view_ber",
-             spread([](const AttackDraw& d) { return d.owner_view_ber; })},
-            {"bit_errors", spread([](const AttackDraw& d) {
-               return double(d.owner_bit_errors);
-             })}}}};
+  nlohmann::json j = {{"count", draws.size()}};
+  for (const bool owner : {false, true}) {
+    nlohmann::json side = {
+        {"view_ber", SpreadJson(SpreadOver(draws,
+                                           [owner](const AttackDraw& d) {
+                                             return owner ? d.owner_view_ber
+                                                          : d.view_ber;
+                                           }))},
+        {"bit_errors",
+         SpreadJson(SpreadOver(draws, [owner](const AttackDraw& d) {
+           return double(owner ? d.owner_bit_errors : d.bit_errors);
+         }))}};
+    side["verdicts"] = {
+        {"present", CountDraws(draws, owner, Verdict::kPresent)},
+        {"inconclusive", CountDraws(draws, owner, Verdict::kInconclusive)},
+        {"absent", CountDraws(draws, owner, Verdict::kAbsent)}};
+    nlohmann::json per_draw = nlohmann::json::array();
+    for (const AttackDraw& d : draws) per_draw.push_back(DrawJson(d, owner));
+    side["per_draw"] = per_draw;
+    if (owner) {
+      j["owner"] = side;
+    } else {
+      j.update(side);
+    }
+  }
+  return j;
 }
 
 }  // namespace
@@ -118,6 +134,19 @@ DrawSpread SpreadOver(const std::vector<AttackDraw>& draws,
     spread.max = std::max(spread.max, value);
   }
   return spread;
+}
+
+AttackDraw ReadDraw(const ExtractionResult& blind,
+                    const ExtractionResult& owner) {
+  return {blind.mean_view_ber, owner.mean_view_ber, blind.bit_errors,
+          owner.bit_errors,    blind.verdict,       owner.verdict};
+}
+
+int CountDraws(const std::vector<AttackDraw>& draws, bool owner,
+               Verdict verdict) {
+  return int(std::count_if(draws.begin(), draws.end(), [&](const auto& d) {
+    return (owner ? d.owner_verdict : d.verdict) == verdict;
+  }));
 }
 
 ImageRGB RenderClamped(Rasterizer& rasterizer, const GaussianModel& model,
@@ -413,12 +442,18 @@ std::string DrawsMarkdown(const EvaluationReport& r) {
     if (row.draws.size() < 2) continue;
     if (out.tellp() == 0) {
       out << "\n## Over " << r.attack_draws
-          << " draws of each random attack (mean (min-max) over draws)\n\n"
-          << "| Attack | Single view BER mean (%) | Bit errors | Owner: "
-             "single view BER mean (%) | Owner: bit errors |\n"
-          << "|---|---:|---:|---:|---:|\n";
+          << " draws of each random attack (mean (min-max) over draws; "
+             "present: draws whose aggregated views read 'present')\n\n"
+          << "| Attack | Single view BER mean (%) | Bit errors | Present | "
+             "Owner: single view BER mean (%) | Owner: bit errors | Owner: "
+             "present |\n"
+          << "|---|---:|---:|---:|---:|---:|---:|\n";
     }
     const auto& d = row.draws;
+    const auto present = [&](bool owner) {
+      return std::to_string(CountDraws(d, owner, Verdict::kPresent)) + " of " +
+             std::to_string(d.size());
+    };
     out << "| " << row.attack << " | "
         << cell(SpreadOver(d, [](const AttackDraw& x) { return x.view_ber; }),
                 100, "%.2f")
@@ -427,7 +462,7 @@ std::string DrawsMarkdown(const EvaluationReport& r) {
                SpreadOver(
                    d, [](const AttackDraw& x) { return double(x.bit_errors); }),
                1, "%.1f")
-        << " | "
+        << " | " << present(false) << " | "
         << cell(SpreadOver(
                     d, [](const AttackDraw& x) { return x.owner_view_ber; }),
                 100, "%.2f")
@@ -437,7 +472,7 @@ std::string DrawsMarkdown(const EvaluationReport& r) {
                              return double(x.owner_bit_errors);
                            }),
                 1, "%.1f")
-        << " |\n";
+        << " | " << present(true) << " |\n";
   }
   return out.str();
 }

@@ -89,7 +89,15 @@ struct AttackDraw {
   double view_ber = 0, owner_view_ber = 0;
   // Wrong bits of the mean logits over the views.
   int bit_errors = 0, owner_bit_errors = 0;
+  // The verdict on the views aggregated, blind and as the owner: what an
+  // owner shows for this draw.
+  Verdict verdict = Verdict::kInconclusive,
+          owner_verdict = Verdict::kInconclusive;
 };
+
+// The draw read blind as `blind` and as the owner as `owner`.
+AttackDraw ReadDraw(const ExtractionResult& blind,
+                    const ExtractionResult& owner);
 
 // Mean, smallest and largest of a figure over draws.
 struct DrawSpread {
@@ -97,6 +105,9 @@ struct DrawSpread {
 };
 DrawSpread SpreadOver(const std::vector<AttackDraw>& draws,
                       const std::function<double(const AttackDraw&)>& figure);
+// Draws whose aggregated verdict (blind, or as the owner) is `verdict`.
+int CountDraws(const std::vector<AttackDraw>& draws, bool owner,
+               Verdict verdict);
 
 // The watermark under one attack.
 struct RobustnessRow {

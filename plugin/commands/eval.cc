@@ -3,6 +3,7 @@
 // JSON and a Markdown table (docs/evaluation.md).
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -200,6 +201,13 @@ int RunEval(int argc, char** argv) {
   workspace_options.images_optional = true;
   const Workspace workspace = Workspace::Open(workspace_options);
   options.ground_truth = workspace.has_images();
+  if (attack_draws > 1 &&
+      std::none_of(options.model_attacks.begin(), options.model_attacks.end(),
+                   AttackRendersPerDraw)) {
+    notices.push_back("eval: --attack_draws " + std::to_string(attack_draws) +
+                      ": no attack in --attacks is random (gn, dropout, "
+                      "crop): each is read once");
+  }
   if (!options.ground_truth) {
     options.ground_truth_note = "none (no image folder at " +
                                 workspace.options().image_path +

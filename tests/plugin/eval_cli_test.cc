@@ -5,6 +5,7 @@
 // similarity transform with moved cameras, and one-line errors.
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -234,12 +235,52 @@ TEST(EvalCli, DrawsRandomAttacksManyTimesKeepingTheFirstDrawAsTheRow) {
   // decoder's blind reading is set by the scene and reads the same.)
   EXPECT_LT(crop["draws"]["owner"]["view_ber"]["min"].get<double>(),
             crop["draws"]["owner"]["view_ber"]["max"].get<double>());
+  // Every draw's figures are kept, the first being the row's; the verdict
+  // counts add up to the draws and count what per_draw says.
+  for (const bool owner : {false, true}) {
+    const auto& side = owner ? crop["draws"]["owner"] : crop["draws"];
+    const auto& per_draw = side["per_draw"];
+    ASSERT_EQ(per_draw.size(), 6u);
+    const auto& row = owner ? crop["owner"] : crop;
+    EXPECT_EQ(per_draw[0]["view_ber"], row["view_ber"]["mean"]);
+    EXPECT_EQ(per_draw[0]["bit_errors"], row["bit_errors"]);
+    EXPECT_EQ(per_draw[0]["verdict"], row["verdict"]);
+    int counted = 0;
+    for (const char* v : {"present", "inconclusive", "absent"}) {
+      int listed = 0;
+      for (const auto& d : per_draw) {
+        const std::string verdict = d["verdict"];
+        listed += verdict.size() >= std::strlen(v) &&
+                  verdict.compare(verdict.size() - std::strlen(v),
+                                  std::string::npos, v) == 0;
+      }
+      EXPECT_EQ(side["verdicts"][v].get<int>(), listed) << v;
+      counted += side["verdicts"][v].get<int>();
+    }
+    EXPECT_EQ(counted, 6);
+  }
+  // Draw d is the same draw however many are drawn: 3 draws are the first 3
+  // of 6 (so a shorter run reads as a prefix of a longer one).
+  const auto few =
+      RunCommand(base + " --attack_draws 3 --output_path " + (dir / "few"));
+  ASSERT_EQ(few.exit_code, 0) << few.output;
+  const auto few_crop = ReadJson(dir / "few.json")["robustness"][1]["draws"];
+  ASSERT_EQ(few_crop["owner"]["per_draw"].size(), 3u);
+  for (size_t d = 0; d < 3; ++d) {
+    EXPECT_EQ(few_crop["owner"]["per_draw"][d],
+              crop["draws"]["owner"]["per_draw"][d])
+        << d;
+    EXPECT_EQ(few_crop["per_draw"][d], crop["draws"]["per_draw"][d]) << d;
+  }
   EXPECT_NE(many.output.find("## Over 6 draws of each random attack"),
             std::string::npos)
       << many.output;
   EXPECT_NE(many.output.find("| crop:0.3 | "), std::string::npos);
   EXPECT_EQ(one.output.find("draws of each random attack"), std::string::npos);
   ExpectOneLineError(RunCommand(base + " --attack_draws 0"), "--attack_draws");
+  ExpectOneLineError(RunCommand(base + " --attack_draws -3"), "--attack_draws");
+  ExpectOneLineError(RunCommand(base + " --attack_draws 1001"),
+                     "--attack_draws");
 }
 
 TEST(AttackCli, NewAttacksKeepTheLayoutAndExtractFollowsTheTransform) {
