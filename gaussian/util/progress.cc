@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -27,6 +28,10 @@ ProgressObserver SetProgressObserver(ProgressObserver observer) {
 }
 
 void EtaEstimator::Add(int64_t done, double seconds, double load) {
+  if (growth_start_.done < 0 && (samples_.size() || history_.size()) &&
+      load != latest_.load) {
+    growth_start_ = latest_;
+  }
   latest_ = {done, seconds, load};
   if (samples_.empty() ||
       seconds - samples_.back().seconds >= window_seconds_ / 64) {
@@ -37,6 +42,71 @@ void EtaEstimator::Add(int64_t done, double seconds, double load) {
          seconds - samples_[1].seconds >= window_seconds_) {
     samples_.pop_front();
   }
+  constexpr size_t kMaxHistory = 512;
+  if (history_.empty() ||
+      seconds - history_.back().seconds >= window_seconds_ / 8) {
+    if (history_.size() == kMaxHistory) {
+      for (size_t i = 1; 2 * i < history_.size(); ++i) {
+        history_[i] = history_[2 * i];
+      }
+      history_.resize(kMaxHistory / 2);
+    }
+    history_.push_back(latest_);
+  }
+}
+
+std::pair<double, double> EtaEstimator::CostShape() const {
+  // Weighted least squares of y = seconds per step against x = mean load
+  // of each interval, weight = its steps.
+  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  double low = INFINITY, high = 0;
+  for (size_t i = 1; i < history_.size(); ++i) {
+    const Sample& p = history_[i - 1];
+    const Sample& q = history_[i];
+    const double steps = double(q.done - p.done);
+    if (!(steps > 0) || !(q.seconds > p.seconds)) continue;
+    const double x = 0.5 * (p.load + q.load);
+    const double y = (q.seconds - p.seconds) / steps;
+    sw += steps;
+    sx += steps * x;
+    sy += steps * y;
+    sxx += steps * x * x;
+    sxy += steps * x * y;
+    low = std::min(low, x);
+    high = std::max(high, x);
+  }
+  if (!(sw > 0) || !(high > 1.1 * low)) return {1, 0};
+  const double mx = sx / sw, my = sy / sw;
+  const double var = sxx / sw - mx * mx, cov = sxy / sw - mx * my;
+  if (!(var > 0)) return {1, 0};
+  const double b = cov / var, a = my - b * mx;
+  if (!(b > 0)) return {1, 0};  // no cost in the load: a constant
+  if (!(a > 0)) return {0, 1};  // all of it in the load
+  return {a, b};
+}
+
+double EtaEstimator::Growth() const {
+  if (growth_start_.done < 0) return 0;
+  // Least-squares slope of the load against the steps since it started
+  // growing: a staircase of densification steps reads as its mean slope
+  // whether the latest sample sits just before a step or just after it.
+  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  const auto add = [&](const Sample& p) {
+    const double x = double(p.done);
+    sw += 1;
+    sx += x;
+    sy += p.load;
+    sxx += x * x;
+    sxy += x * p.load;
+  };
+  add(growth_start_);
+  for (const Sample& p : history_) {
+    if (p.done > growth_start_.done && p.done < latest_.done) add(p);
+  }
+  add(latest_);
+  const double mx = sx / sw, var = sxx / sw - mx * mx;
+  if (!(var > 0)) return 0;
+  return std::max(0.0, (sxy / sw - mx * sy / sw) / var);
 }
 
 double EtaEstimator::Remaining(int64_t total, int64_t grows_until) const {
@@ -45,17 +115,20 @@ double EtaEstimator::Remaining(int64_t total, int64_t grows_until) const {
   const int64_t steps = latest_.done - first.done;
   const double seconds = latest_.seconds - first.seconds;
   if (steps <= 0 || !(seconds > 0)) return 0;
-  // Seconds per step and unit of load, at the window's mean load.
-  const double mean_load = std::max(0.5 * (first.load + latest_.load), 1e-9);
-  const double cost = seconds / (double(steps) * mean_load);
-  const double growth = std::max(0.0, (latest_.load - first.load) / steps);
-  // Steps left while the load grows (a), then at its final value (b).
+  const auto [a, b] = CostShape();
+  // The recent steps' seconds per unit of modelled cost (a + b * load at
+  // the window's mean load).
+  const double mean_load = 0.5 * (first.load + latest_.load);
+  const double unit = std::max(a + b * mean_load, 1e-12);
+  const double scale = seconds / (double(steps) * unit);
+  const double growth = Growth();
+  // Steps left while the load grows (g), then at its final value (h).
   const double left = double(std::max<int64_t>(0, total - latest_.done));
-  const double a = std::clamp(double(grows_until - latest_.done), 0.0, left);
-  const double b = left - a;
+  const double g = std::clamp(double(grows_until - latest_.done), 0.0, left);
+  const double h = left - g;
   const double load_sum =
-      latest_.load * left + growth * a * (a + 1) / 2 + growth * a * b;
-  return cost * load_sum;
+      latest_.load * left + growth * g * (g + 1) / 2 + growth * g * h;
+  return scale * (a * left + b * load_sum);
 }
 
 ProgressBar::ProgressBar(std::string label, int64_t total, int64_t start)

@@ -8,15 +8,22 @@
 #include <deque>
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace watergs {
 
-// Remaining time of a loop whose steps cost in proportion to a load (for
-// training, the Gaussian count) that may grow for a while. The cost per step
-// and unit of load is that of the recent steps (the last `window_seconds`),
-// not the average since the start, which early cheap steps drag down; the
-// load is extrapolated at its recent growth per step until `grows_until`,
-// then held. With the default load of 1 this is the recent rate.
+// Remaining time of a loop whose steps cost a + b * load (for training, the
+// load is the Gaussian count, which densification grows in steps every 100
+// iterations; a is what a step costs whatever the count: pixels, loss,
+// optimizer bookkeeping). The shape a : b is fitted to the whole run so far
+// (it needs loads that differ; until then a step costs the same at any
+// load), the scale to the recent steps (the last `window_seconds`: a machine
+// that got busier or freer is seen at once). The load is extrapolated at its
+// mean growth per step since it started growing (not the recent growth,
+// which is zero between two densification steps and a whole step's jump
+// after one) until `grows_until`, then held. With the default load of 1
+// this is the recent rate.
 class EtaEstimator {
  public:
   explicit EtaEstimator(double window_seconds = 30)
@@ -31,9 +38,20 @@ class EtaEstimator {
     int64_t done;
     double seconds, load;
   };
+  // Fits seconds per step = a + b * load over the run's intervals (least
+  // squares weighted by steps, a and b >= 0): {a, b}, {1, 0} without loads
+  // that differ by 10%.
+  std::pair<double, double> CostShape() const;
+  // The load's mean growth per step since it started growing (0 before).
+  double Growth() const;
+
   double window_seconds_;
   // Samples at least window/64 apart, the oldest just beyond the window.
   std::deque<Sample> samples_;
+  // The whole run at least window/8 apart, thinned to half when full.
+  std::vector<Sample> history_;
+  // The last sample before the load first changed (done < 0: not yet).
+  Sample growth_start_{-1, 0, 0};
   // The latest sample (samples_ may hold an older one at its end).
   Sample latest_{0, 0, 0};
 };

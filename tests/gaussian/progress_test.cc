@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace watergs {
@@ -63,6 +64,65 @@ TEST(EtaEstimator, ExtrapolatesTheLoadUntilItStopsGrowing) {
   EXPECT_NEAR(eta.Remaining(2000, 1500), stopping, 0.02 * stopping);
   // The load held at its current value would say far less.
   EXPECT_GT(eta.Remaining(2000, 15000), 1.3 * cost * load(959) * 1041);
+}
+
+// A run of `total` steps whose step costs cost(load(step)) seconds, fed to
+// an estimator up to step `now`: {its estimate, the true remaining time}.
+template <typename Load, typename Cost>
+std::pair<double, double> EtaAt(int64_t now, int64_t total, int64_t grows_until,
+                                Load load, Cost cost) {
+  EtaEstimator eta(30);
+  double t = 0, truth = 0;
+  for (int64_t step = 1; step <= total; ++step) {
+    const double seconds = cost(load(step));
+    if (step <= now) {
+      t += seconds;
+      eta.Add(step, t, load(step));
+    } else {
+      truth += seconds;
+    }
+  }
+  return {eta.Remaining(total, grows_until), truth};
+}
+
+// Training as it is: densification adds Gaussians in one step every 100
+// iterations, and a step costs a fixed part (pixels, loss) plus a part per
+// Gaussian (the horns run at 252x189: about 0.2 s + 1.1e-5 s per Gaussian on
+// busy cores). The ETA must neither jump with each densification step (the
+// recent growth is nothing between two steps and a whole step after one:
+// an ETA of 40 min, then 8 h, then 47 min, on a 30-minute run) nor price
+// the whole step in the Gaussians.
+TEST(EtaEstimator, ReadsADensificationStaircaseAsItsMeanGrowth) {
+  const auto load = [](int64_t step) {
+    return 5000.0 + 7000.0 * std::clamp<int64_t>((step - 500) / 100, 0, 30);
+  };
+  const auto cost = [](double gaussians) { return 0.2 + 1.1e-5 * gaussians; };
+  for (const int64_t now : {999, 1001, 1450, 2001, 2999}) {
+    const auto [estimate, truth] = EtaAt(now, 7000, 3500, load, cost);
+    EXPECT_NEAR(estimate, truth, 0.15 * truth) << "at step " << now;
+  }
+  // Just before and just after a step: the same ETA, within 10%.
+  const double before = EtaAt(999, 7000, 3500, load, cost).first;
+  const double after = EtaAt(1001, 7000, 3500, load, cost).first;
+  EXPECT_NEAR(after, before, 0.1 * before);
+}
+
+// With a fixed part in every step, pricing the steps by the Gaussians alone
+// would put the rest of a run that grows tenfold at nearly ten times the
+// present cost per step; the fitted shape keeps the fixed part fixed.
+TEST(EtaEstimator, KeepsTheFixedPartOfAStepFixedAsTheLoadGrows) {
+  const auto load = [](int64_t step) {
+    return 10000.0 + 50.0 * std::min<int64_t>(step, 4000);
+  };
+  const auto cost = [](double gaussians) { return 0.1 + 1e-6 * gaussians; };
+  const auto [estimate, truth] = EtaAt(1000, 7000, 4000, load, cost);
+  EXPECT_NEAR(estimate, truth, 0.05 * truth);
+  // What a cost in proportion to the load alone would say: the present
+  // seconds per Gaussian times the remaining Gaussian-steps.
+  double load_sum = 0;
+  for (int64_t step = 1001; step <= 7000; ++step) load_sum += load(step);
+  const double proportional = cost(load(1000)) / load(1000) * load_sum;
+  EXPECT_GT(proportional, 1.5 * truth);
 }
 
 TEST(FormatDuration, UsesTheLargestUnitThatFits) {
