@@ -20,6 +20,27 @@ void Notify(const std::string& label, int64_t done, int64_t total,
   }
 }
 
+// Weighted least-squares line y = intercept + slope * x.
+struct LineFit {
+  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  void Add(double x, double y, double w = 1) {
+    sw += w;
+    sx += w * x;
+    sy += w * y;
+    sxx += w * x * x;
+    sxy += w * x * y;
+  }
+  // {intercept, slope}; false without two distinct x.
+  bool Solve(double* intercept, double* slope) const {
+    if (!(sw > 0)) return false;
+    const double mx = sx / sw, my = sy / sw, var = sxx / sw - mx * mx;
+    if (!(var > 0)) return false;
+    *slope = (sxy / sw - mx * my) / var;
+    *intercept = my - *slope * mx;
+    return true;
+  }
+};
+
 }  // namespace
 
 ProgressObserver SetProgressObserver(ProgressObserver observer) {
@@ -56,9 +77,8 @@ void EtaEstimator::Add(int64_t done, double seconds, double load) {
 }
 
 std::pair<double, double> EtaEstimator::CostShape() const {
-  // Weighted least squares of y = seconds per step against x = mean load
-  // of each interval, weight = its steps.
-  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  // Seconds per step against each interval's mean load, weighted by steps.
+  LineFit fit;
   double low = INFINITY, high = 0;
   for (size_t i = 1; i < history_.size(); ++i) {
     const Sample& p = history_[i - 1];
@@ -66,20 +86,12 @@ std::pair<double, double> EtaEstimator::CostShape() const {
     const double steps = double(q.done - p.done);
     if (!(steps > 0) || !(q.seconds > p.seconds)) continue;
     const double x = 0.5 * (p.load + q.load);
-    const double y = (q.seconds - p.seconds) / steps;
-    sw += steps;
-    sx += steps * x;
-    sy += steps * y;
-    sxx += steps * x * x;
-    sxy += steps * x * y;
+    fit.Add(x, (q.seconds - p.seconds) / steps, steps);
     low = std::min(low, x);
     high = std::max(high, x);
   }
-  if (!(sw > 0) || !(high > 1.1 * low)) return {1, 0};
-  const double mx = sx / sw, my = sy / sw;
-  const double var = sxx / sw - mx * mx, cov = sxy / sw - mx * my;
-  if (!(var > 0)) return {1, 0};
-  const double b = cov / var, a = my - b * mx;
+  double a = 0, b = 0;
+  if (!(high > 1.1 * low) || !fit.Solve(&a, &b)) return {1, 0};
   if (!(b > 0)) return {1, 0};  // no cost in the load: a constant
   if (!(a > 0)) return {0, 1};  // all of it in the load
   return {a, b};
@@ -90,23 +102,17 @@ double EtaEstimator::Growth() const {
   // Least-squares slope of the load against the steps since it started
   // growing: a staircase of densification steps reads as its mean slope
   // whether the latest sample sits just before a step or just after it.
-  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
-  const auto add = [&](const Sample& p) {
-    const double x = double(p.done);
-    sw += 1;
-    sx += x;
-    sy += p.load;
-    sxx += x * x;
-    sxy += x * p.load;
-  };
-  add(growth_start_);
+  LineFit fit;
+  fit.Add(double(growth_start_.done), growth_start_.load);
   for (const Sample& p : history_) {
-    if (p.done > growth_start_.done && p.done < latest_.done) add(p);
+    if (p.done > growth_start_.done && p.done < latest_.done) {
+      fit.Add(double(p.done), p.load);
+    }
   }
-  add(latest_);
-  const double mx = sx / sw, var = sxx / sw - mx * mx;
-  if (!(var > 0)) return 0;
-  return std::max(0.0, (sxy / sw - mx * sy / sw) / var);
+  fit.Add(double(latest_.done), latest_.load);
+  double intercept = 0, slope = 0;
+  if (!fit.Solve(&intercept, &slope)) return 0;
+  return std::max(0.0, slope);
 }
 
 double EtaEstimator::Remaining(int64_t total, int64_t grows_until) const {
