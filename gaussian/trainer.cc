@@ -445,9 +445,18 @@ void Trainer::Run() {
     // reset iteration (3000, 6000, ...) does not score the reset model.
     EvalResult test;
     if (test_now) {
+      const double test_start = bar ? bar->ElapsedSeconds() : 0;
       // model() brings a GPU run's model to the host first.
       test = EvaluateViews(*rasterizer_, model(), views_, options_.test_views,
                            options_.background, active_sh_degree_);
+      if (bar) {
+        bar->AddSideWork(
+            "test", bar->ElapsedSeconds() - test_start,
+            std::count_if(options_.test_iterations.begin(),
+                          options_.test_iterations.end(), [&](int64_t t) {
+                            return t > it && t <= options_.iterations;
+                          }));
+      }
     }
     const IterationStats stats = Step();
     loss.Add(stats.loss.total);

@@ -780,6 +780,7 @@ bool Embedder::Run() {
     const int64_t it = stats.iteration;
     if (options_.check_every > 0 && it % options_.check_every == 0 &&
         !options_.check_views.empty()) {
+      const double check_start = bar ? bar->ElapsedSeconds() : 0;
       last_check = Check(options_.check_views);
       checked = true;
       zero_ber_checks_ =
@@ -793,6 +794,12 @@ bool Embedder::Run() {
         zero_ber_checks_ = 0;
         read_past_margin = false;
         if (bar) bar->Print("embed: distortion layers " + choice_->Summary());
+      }
+      if (bar) {
+        // A check costs tens of steps: priced apart, once per check to come.
+        bar->AddSideWork("check", bar->ElapsedSeconds() - check_start,
+                         options_.iterations / options_.check_every -
+                             it / options_.check_every);
       }
     }
     if (options_.checkpoint_every > 0 && it % options_.checkpoint_every == 0 &&

@@ -49,6 +49,7 @@ ProgressObserver SetProgressObserver(ProgressObserver observer) {
 }
 
 void EtaEstimator::Add(int64_t done, double seconds, double load) {
+  seconds -= side_seconds_;
   if (growth_start_.done < 0 && (samples_.size() || history_.size()) &&
       load != latest_.load) {
     growth_start_ = latest_;
@@ -115,6 +116,16 @@ double EtaEstimator::Growth() const {
   return std::max(0.0, slope);
 }
 
+void EtaEstimator::AddSideWork(const std::string& kind, double seconds,
+                               int64_t times_to_come) {
+  if (!(seconds >= 0) || !std::isfinite(seconds)) return;
+  side_seconds_ += seconds;
+  SideWork& work = side_work_[kind];
+  work.recent_seconds.push_back(seconds);
+  if (work.recent_seconds.size() > 3) work.recent_seconds.pop_front();
+  work.times_to_come = std::max<int64_t>(0, times_to_come);
+}
+
 double EtaEstimator::Remaining(int64_t total, int64_t grows_until) const {
   if (samples_.empty()) return 0;
   const Sample& first = samples_.front();
@@ -134,7 +145,13 @@ double EtaEstimator::Remaining(int64_t total, int64_t grows_until) const {
   const double h = left - g;
   const double load_sum =
       latest_.load * left + growth * g * (g + 1) / 2 + growth * g * h;
-  return scale * (a * left + b * load_sum);
+  double side = 0;
+  for (const auto& [kind, work] : side_work_) {
+    double sum = 0;
+    for (double s : work.recent_seconds) sum += s;
+    side += work.times_to_come * sum / work.recent_seconds.size();
+  }
+  return scale * (a * left + b * load_sum) + side;
 }
 
 ProgressBar::ProgressBar(std::string label, int64_t total, int64_t start)

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -32,6 +33,14 @@ class EtaEstimator {
   void Add(int64_t done, double seconds, double load = 1);
   // Seconds until `total` steps are done; 0 until two samples differ.
   double Remaining(int64_t total, int64_t grows_until = 0) const;
+  // `seconds` of work beside the steps (an embedding's check, a training's
+  // held-out test), of `kind`, just done, and due `times_to_come` more
+  // times before the end. Kept out of the steps' rate (one check in the
+  // window would price every step to come at its cost) and added to the
+  // remaining time once per time to come, at the mean of the kind's last
+  // three. Call it before the next Add.
+  void AddSideWork(const std::string& kind, double seconds,
+                   int64_t times_to_come);
 
  private:
   struct Sample {
@@ -54,6 +63,13 @@ class EtaEstimator {
   Sample growth_start_{-1, 0, 0};
   // The latest sample (samples_ may hold an older one at its end).
   Sample latest_{0, 0, 0};
+  struct SideWork {
+    std::deque<double> recent_seconds;
+    int64_t times_to_come = 0;
+  };
+  std::map<std::string, SideWork> side_work_;
+  // All side work so far: subtracted from Add's seconds.
+  double side_seconds_ = 0;
 };
 
 // What a ProgressBar tells its observer (below).
@@ -87,6 +103,11 @@ class ProgressBar {
   // which grows until step `grows_until`: the ETA extrapolates it
   // (EtaEstimator). Set before each Update; the default load is 1.
   void SetLoad(double load, int64_t grows_until);
+  // Work beside the steps, timed by the job (EtaEstimator::AddSideWork).
+  void AddSideWork(const std::string& kind, double seconds,
+                   int64_t times_to_come) {
+    eta_.AddSideWork(kind, seconds, times_to_come);
+  }
   // Prints `line` on stdout on a line of its own (a result worth keeping,
   // not progress): on a terminal the bar is cleared first and redrawn at the
   // next Update.

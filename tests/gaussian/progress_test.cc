@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <stdexcept>
 #include <thread>
@@ -123,6 +124,57 @@ TEST(EtaEstimator, KeepsTheFixedPartOfAStepFixedAsTheLoadGrows) {
   for (int64_t step = 1001; step <= 7000; ++step) load_sum += load(step);
   const double proportional = cost(load(1000)) / load(1000) * load_sum;
   EXPECT_GT(proportional, 1.5 * truth);
+}
+
+// An embedding as it runs: 1,500 steps of 0.9 s with a check every 250
+// that renders and decodes the check views (25 s, the length of 28 steps).
+// Returns the ETA after step `now`, fed with the checks as side work or,
+// when `apart` is false, with their seconds inside the steps' timeline.
+double EmbedEtaAt(int64_t now, bool apart) {
+  EtaEstimator eta;
+  double t = 0;
+  for (int64_t step = 1; step <= now; ++step) {
+    t += 0.9;
+    if (step % 250 == 0) {
+      t += 25;
+      if (apart) eta.AddSideWork("check", 25, 1500 / 250 - step / 250);
+    }
+    eta.Add(step, t);
+  }
+  return eta.Remaining(1500);
+}
+
+// The horns embedding's log read "ETA 1h25m" just after its check at
+// iteration 1,000 with 7 min to go: a 30-s window holding a check priced
+// every step to come at the check's rate. Timed apart, a check is priced
+// once per check to come.
+TEST(EtaEstimator, PricesChecksApartFromTheSteps) {
+  for (const int64_t now : {1000, 1001, 1100, 1249, 1250, 1400}) {
+    const int64_t checks_to_come = 1500 / 250 - now / 250;
+    const double truth = 0.9 * (1500 - now) + 25.0 * checks_to_come;
+    EXPECT_NEAR(EmbedEtaAt(now, true), truth, 0.02 * truth) << "at " << now;
+  }
+  // Inside the timeline the check makes the ETA jump (the bug).
+  const double truth = 0.9 * 500 + 25.0 * 2;
+  EXPECT_GT(EmbedEtaAt(1000, false), 2 * truth);
+}
+
+TEST(EtaEstimator, PricesSideWorkAtTheMeanOfItsLastThree) {
+  EtaEstimator eta;
+  eta.Add(0, 0);
+  eta.Add(10, 10);  // 1 s a step
+  for (const double seconds : {100.0, 2.0, 4.0, 6.0}) {
+    eta.AddSideWork("test", seconds, 2);
+  }
+  eta.AddSideWork("check", 1, 3);
+  eta.Add(20, 10 + 112 + 1 + 10);  // the side work is not in the steps' rate
+  EXPECT_NEAR(eta.Remaining(30), 10 + 2 * 4.0 + 3 * 1.0, 1e-9);
+  eta.AddSideWork("test", 4, 0);  // the last one: nothing more to price
+  eta.Add(21, 133 + 4 + 1);
+  EXPECT_NEAR(eta.Remaining(30), 9 + 3 * 1.0, 1e-9);
+  eta.AddSideWork("test", std::nan(""), 5);  // ignored, as is -1 s
+  eta.AddSideWork("test", -1, 5);
+  EXPECT_NEAR(eta.Remaining(30), 9 + 3 * 1.0, 1e-9);
 }
 
 TEST(FormatDuration, UsesTheLargestUnitThatFits) {
