@@ -780,7 +780,7 @@ bool Embedder::Run() {
     const int64_t it = stats.iteration;
     if (options_.check_every > 0 && it % options_.check_every == 0 &&
         !options_.check_views.empty()) {
-      const double check_start = bar ? bar->ElapsedSeconds() : 0;
+      const auto check_start = Clock::now();
       last_check = Check(options_.check_views);
       checked = true;
       zero_ber_checks_ =
@@ -795,9 +795,12 @@ bool Embedder::Run() {
         read_past_margin = false;
         if (bar) bar->Print("embed: distortion layers " + choice_->Summary());
       }
+      const double seconds = Seconds(check_start, Clock::now());
+      check_seconds_ += seconds;
+      ++num_checks_;
       if (bar) {
         // A check costs tens of steps: priced apart, once per check to come.
-        bar->AddSideWork("check", bar->ElapsedSeconds() - check_start,
+        bar->AddSideWork("check", seconds,
                          options_.iterations / options_.check_every -
                              it / options_.check_every);
       }

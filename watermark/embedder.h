@@ -224,6 +224,10 @@ class Embedder {
   const DistortionChoice* distortion_choice() const { return choice_.get(); }
   // Sum of per-stage seconds over all iterations so far.
   const EmbedTimings& total_timings() const { return total_timings_; }
+  // Seconds spent in Run's checks (with their distortion reviews) since
+  // this process started, and how many ran: what --check_every costs.
+  double check_seconds() const { return check_seconds_; }
+  int64_t num_checks() const { return num_checks_; }
   Rasterizer& rasterizer() { return *rasterizer_; }
   // True when the iterations run on the GPU with the model resident there
   // (a CUDA rasterizer and decoder, float32 moments).
@@ -354,6 +358,8 @@ class Embedder {
   int64_t iteration_ = 0;
   int zero_ber_checks_ = 0;
   EmbedTimings total_timings_;
+  double check_seconds_ = 0;
+  int64_t num_checks_ = 0;
   // Reused per-iteration buffers.
   GaussianModel distorted_;
   std::vector<uint32_t> source_;

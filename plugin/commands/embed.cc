@@ -273,6 +273,12 @@ void PrintTimings(const Embedder& embedder) {
       1e3 * t.Total() / n, 1e3 * t.distortion / n, 1e3 * t.render / n,
       1e3 * t.image_loss / n, 1e3 * t.decoder / n, 1e3 * t.backward / n,
       1e3 * t.density / n, 1e3 * t.adam / n);
+  if (embedder.num_checks() > 0) {
+    std::printf("embed: checks %.1f s, %lld of %.1f s each (--check_every)\n",
+                embedder.check_seconds(),
+                static_cast<long long>(embedder.num_checks()),
+                embedder.check_seconds() / embedder.num_checks());
+  }
 }
 
 int RunEmbed(int argc, char** argv) {

@@ -50,6 +50,9 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
                               "2");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("per iteration"), std::string::npos);
+  // 12 iterations checked every 6: two checks, timed apart from the steps.
+  EXPECT_NE(run.output.find("embed: checks "), std::string::npos);
+  EXPECT_NE(run.output.find(", 2 of "), std::string::npos) << run.output;
   EXPECT_NE(run.output.find(" 6 views "), std::string::npos) << run.output;
   // --eval holds out every 8th view (here view 0) as train --eval does.
   const auto held_out =
