@@ -61,6 +61,8 @@ void CachedTensorDecoder::InputGradient(const ImageRGB& image,
       dimage->data[p * 3 + c] = 2.f * dinput_.data[c * hw + p];
 }
 
+std::string ShippedDecoderPath() { return WATERGS_SHIPPED_DECODER; }
+
 std::unique_ptr<BitDecoder> LoadBitDecoder(const std::string& path,
                                            Device device, int expected_bits) {
   const NetworkFile file = ReadNetworkFile(path);

@@ -67,6 +67,14 @@ class CachedTensorDecoder : public BitDecoder {
   bool has_forward_ = false;
 };
 
+// The decoder watergs ships (watermark/models/decoder_48.bin of the source
+// tree this binary was built from): every command's default --decoder.
+std::string ShippedDecoderPath();
+// --decoder's help text, the same in every command.
+inline constexpr char kDecoderHelp[] =
+    "Decoder weights file (default: the shipped 48-bit decoder, which "
+    "reads what watergs embeds with it)";
+
 // Loads the decoder of a weights file onto `device` with Decoder::Load's
 // checks and errors (expected_bits > 0 also checks L). Throws Error naming
 // the file for Device::kCuda when this build or machine has no usable GPU.

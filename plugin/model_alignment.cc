@@ -1,0 +1,580 @@
+// Checking a model against its workspace's photos, and finding the frame it
+// was saved in.
+#include "plugin/model_alignment.h"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+
+#include "gaussian/loss.h"
+#include "gaussian/point_kdtree.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
+#include "plugin/workspace.h"
+
+namespace watergs {
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::Matrix3Xd;
+using Eigen::Vector3d;
+
+// Points ICP works on: enough for a robust fit, few enough for seconds.
+constexpr size_t kSearchPoints = 4000;
+// Points each of the many starts is refined on.
+constexpr size_t kCoarsePoints = 1000;
+// Neighbours a normal is fitted to.
+constexpr size_t kNormalNeighbours = 10;
+// Rotations spread at random over all, besides the principal axes' 48.
+constexpr int kSpreadStarts = 72;
+// Share of the nearest-neighbour pairs ICP keeps in each direction: the
+// clouds differ (floaters, background the SfM points never reached).
+constexpr double kTrim = 0.7;
+// Gaussians this transparent are left out of the model's cloud.
+constexpr float kMinAlpha = 0.3f;
+
+// Every `stride`-th point so that at most `max_points` remain, as 3 x N.
+Matrix3Xd Subsample(const std::vector<float>& xyz, size_t max_points) {
+  const size_t n = xyz.size() / 3;
+  const size_t stride = std::max<size_t>(1, (n + max_points - 1) / max_points);
+  Matrix3Xd out(3, (n + stride - 1) / stride);
+  for (size_t i = 0, k = 0; i < n; i += stride, ++k) {
+    out.col(k) = Vector3d(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+  }
+  return out;
+}
+
+std::vector<float> ToFloats(const Matrix3Xd& points) {
+  std::vector<float> xyz(points.size());
+  for (Eigen::Index k = 0; k < points.cols(); ++k) {
+    for (int d = 0; d < 3; ++d) xyz[3 * k + d] = float(points(d, k));
+  }
+  return xyz;
+}
+
+double Quantile(std::vector<double> values, double q) {
+  const size_t k = std::min(values.size() - 1, size_t(q * values.size()));
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[k];
+}
+
+// A cloud's robust centre, principal axes (columns, a proper rotation) and
+// spread (median distance from the centre).
+struct Frame {
+  Vector3d centre;
+  Matrix3d axes;
+  double spread = 0;
+};
+
+Frame PrincipalFrame(const Matrix3Xd& points) {
+  Frame f;
+  for (int d = 0; d < 3; ++d) {
+    std::vector<double> values(points.cols());
+    for (Eigen::Index k = 0; k < points.cols(); ++k) values[k] = points(d, k);
+    f.centre[d] = Quantile(values, 0.5);
+  }
+  std::vector<double> distance(points.cols());
+  for (Eigen::Index k = 0; k < points.cols(); ++k) {
+    distance[k] = (points.col(k) - f.centre).norm();
+  }
+  f.spread = Quantile(distance, 0.5);
+  // Axes from the inner 90%: far floaters would otherwise set them.
+  const double reach = Quantile(distance, 0.9);
+  Matrix3d covariance = Matrix3d::Zero();
+  for (Eigen::Index k = 0; k < points.cols(); ++k) {
+    if (distance[k] > reach) continue;
+    const Vector3d d = points.col(k) - f.centre;
+    covariance += d * d.transpose();
+  }
+  f.axes = Eigen::SelfAdjointEigenSolver<Matrix3d>(covariance).eigenvectors();
+  if (f.axes.determinant() < 0) f.axes.col(0) *= -1;
+  return f;
+}
+
+// The 24 rotations that map the axes onto signed axes.
+std::vector<Matrix3d> AxisRotations() {
+  std::vector<Matrix3d> out;
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
+                           {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (const auto& p : perms) {
+    for (int signs = 0; signs < 8; ++signs) {
+      Matrix3d m = Matrix3d::Zero();
+      for (int r = 0; r < 3; ++r) m(r, p[r]) = (signs >> r & 1) ? -1 : 1;
+      if (m.determinant() > 0) out.push_back(m);
+    }
+  }
+  return out;
+}
+
+Vector3d Apply(const SimilarityTransform& t, const Vector3d& x) {
+  return t.scale * t.rotation * x + t.translation;
+}
+
+// Nearest neighbours of `queries` in `cloud`: for each kept pair (the
+// closest kTrim), the query's column and the neighbour's column.
+struct Pairs {
+  std::vector<Eigen::Index> query, neighbour;
+  std::vector<double> distance;  // every query's, kept or not
+};
+
+Pairs NearestPairs(const Matrix3Xd& queries, const Matrix3Xd& cloud) {
+  const std::vector<float> xyz = ToFloats(cloud);
+  const PointCloudAdaptor adaptor{xyz};
+  const PointKdTree tree(3, adaptor,
+                         nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  Pairs pairs;
+  std::vector<uint32_t> nearest(queries.cols());
+  pairs.distance.resize(queries.cols());
+  for (Eigen::Index k = 0; k < queries.cols(); ++k) {
+    const float q[3] = {float(queries(0, k)), float(queries(1, k)),
+                        float(queries(2, k))};
+    float d2 = 0;
+    tree.knnSearch(q, 1, &nearest[k], &d2);
+    pairs.distance[k] = std::sqrt(double(d2));
+  }
+  const double cut = Quantile(pairs.distance, kTrim);
+  for (Eigen::Index k = 0; k < queries.cols(); ++k) {
+    if (pairs.distance[k] > cut) continue;
+    pairs.query.push_back(k);
+    pairs.neighbour.push_back(nearest[k]);
+  }
+  return pairs;
+}
+
+// Trimmed symmetric ICP with scale from `start`.
+CloudAlignment RefineIcp(const Matrix3Xd& source, const Matrix3Xd& target,
+                         double target_spread, SimilarityTransform start,
+                         int iterations) {
+  CloudAlignment result{start, 0};
+  for (int it = 0; it <= iterations; ++it) {
+    Matrix3Xd moved(3, source.cols());
+    for (Eigen::Index k = 0; k < source.cols(); ++k) {
+      moved.col(k) = Apply(result.transform, source.col(k));
+    }
+    const Pairs forward = NearestPairs(moved, target);
+    const Pairs backward = NearestPairs(target, moved);
+    std::vector<double> all = forward.distance;
+    all.insert(all.end(), backward.distance.begin(), backward.distance.end());
+    result.residual = Quantile(all, 0.5) / target_spread;
+    if (it == iterations) break;
+    const size_t n = forward.query.size() + backward.query.size();
+    Matrix3Xd from(3, n), to(3, n);
+    size_t c = 0;
+    for (size_t k = 0; k < forward.query.size(); ++k, ++c) {
+      from.col(c) = source.col(forward.query[k]);
+      to.col(c) = target.col(forward.neighbour[k]);
+    }
+    for (size_t k = 0; k < backward.query.size(); ++k, ++c) {
+      from.col(c) = source.col(backward.neighbour[k]);
+      to.col(c) = target.col(backward.query[k]);
+    }
+    const Eigen::Matrix4d m = Eigen::umeyama(from, to, true);
+    const Matrix3d scaled = m.topLeftCorner<3, 3>();
+    const double scale = std::cbrt(scaled.determinant());
+    if (!(scale > 0) || !std::isfinite(scale)) break;  // collapsed: keep last
+    result.transform.scale = scale;
+    result.transform.rotation = scaled / scale;
+    result.transform.translation = m.topRightCorner<3, 1>();
+  }
+  return result;
+}
+
+double AngleDegrees(const Matrix3d& rotation) {
+  return Eigen::AngleAxisd(rotation).angle() * 180 / M_PI;
+}
+
+// The first `count` of `sorted` that differ from every earlier one kept
+// (starts that converged to the same alignment).
+std::vector<CloudAlignment> Distinct(const std::vector<CloudAlignment>& sorted,
+                                     size_t count) {
+  std::vector<CloudAlignment> kept;
+  for (const CloudAlignment& a : sorted) {
+    if (kept.size() == count) break;
+    const bool seen = std::any_of(kept.begin(), kept.end(), [&](auto& k) {
+      return std::abs(a.transform.scale / k.transform.scale - 1) < 0.01 &&
+             AngleDegrees(a.transform.rotation *
+                          k.transform.rotation.transpose()) < 2;
+    });
+    if (!seen) kept.push_back(a);
+  }
+  return kept;
+}
+
+// Unit normals of `points`: the least principal axis of each point's
+// kNormalNeighbours nearest neighbours.
+Matrix3Xd Normals(const Matrix3Xd& points) {
+  const std::vector<float> xyz = ToFloats(points);
+  const PointCloudAdaptor adaptor{xyz};
+  const PointKdTree tree(3, adaptor,
+                         nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  const size_t k = std::min<size_t>(kNormalNeighbours, points.cols());
+  Matrix3Xd normals(3, points.cols());
+  std::vector<uint32_t> index(k);
+  std::vector<float> d2(k);
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    tree.knnSearch(&xyz[3 * i], k, index.data(), d2.data());
+    Vector3d mean = Vector3d::Zero();
+    for (uint32_t j : index) mean += points.col(j) / double(k);
+    Matrix3d covariance = Matrix3d::Zero();
+    for (uint32_t j : index) {
+      covariance += (points.col(j) - mean) * (points.col(j) - mean).transpose();
+    }
+    normals.col(i) = Eigen::SelfAdjointEigenSolver<Matrix3d>(covariance)
+                         .eigenvectors()
+                         .col(0);
+  }
+  return normals;
+}
+
+// One Gauss-Newton step of point-to-plane ICP with scale over `moved`
+// (the source under the current transform, centred at `c`) and its pairs;
+// the step as the similarity to compose after the current one.
+SimilarityTransform PointToPlaneStep(const Matrix3Xd& moved,
+                                     const Matrix3Xd& moved_normals,
+                                     const Matrix3Xd& target,
+                                     const Matrix3Xd& target_normals,
+                                     const Pairs& forward,
+                                     const Pairs& backward) {
+  const Vector3d c = moved.rowwise().mean();
+  Eigen::Matrix<double, 7, 7> jtj = Eigen::Matrix<double, 7, 7>::Zero();
+  Eigen::Matrix<double, 7, 1> jtr = Eigen::Matrix<double, 7, 1>::Zero();
+  const auto add = [&](const Vector3d& m, const Vector3d& q,
+                       const Vector3d& n) {
+    const Vector3d a = m - c;
+    Eigen::Matrix<double, 7, 1> j;
+    j << a.cross(n), n.dot(a), n;
+    jtj += j * j.transpose();
+    jtr += j * n.dot(m - q);
+  };
+  for (size_t k = 0; k < forward.query.size(); ++k) {
+    add(moved.col(forward.query[k]), target.col(forward.neighbour[k]),
+        target_normals.col(forward.neighbour[k]));
+  }
+  for (size_t k = 0; k < backward.query.size(); ++k) {
+    add(moved.col(backward.neighbour[k]), target.col(backward.query[k]),
+        moved_normals.col(backward.neighbour[k]));
+  }
+  jtj += 1e-9 * jtj.trace() * Eigen::Matrix<double, 7, 7>::Identity();
+  const Eigen::Matrix<double, 7, 1> delta = jtj.ldlt().solve(-jtr);
+  SimilarityTransform step;
+  const Vector3d w = delta.head<3>();
+  step.rotation =
+      w.norm() > 0
+          ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix()
+          : Matrix3d::Identity();
+  step.scale = 1 + delta[3];
+  step.translation = c + delta.tail<3>() - step.scale * step.rotation * c;
+  return step;
+}
+
+// Point-to-plane ICP with scale in both directions from `start`: converges
+// in a few steps where point-to-point ICP crawls along the surfaces.
+CloudAlignment RefinePointToPlane(const Matrix3Xd& source,
+                                  const Matrix3Xd& target, double spread,
+                                  const CloudAlignment& start, int iterations) {
+  const Matrix3Xd source_normals = Normals(source);
+  const Matrix3Xd target_normals = Normals(target);
+  CloudAlignment result = start;
+  Matrix3Xd moved(3, source.cols());
+  for (int it = 0; it <= iterations; ++it) {
+    for (Eigen::Index k = 0; k < source.cols(); ++k) {
+      moved.col(k) = Apply(result.transform, source.col(k));
+    }
+    const Pairs forward = NearestPairs(moved, target);
+    const Pairs backward = NearestPairs(target, moved);
+    std::vector<double> all = forward.distance;
+    all.insert(all.end(), backward.distance.begin(), backward.distance.end());
+    result.residual = Quantile(all, 0.5) / spread;
+    if (it == iterations) break;
+    const SimilarityTransform step =
+        PointToPlaneStep(moved, result.transform.rotation * source_normals,
+                         target, target_normals, forward, backward);
+    if (!(step.scale > 0.5 && step.scale < 2)) break;  // diverging: keep last
+    result.transform = step.After(result.transform);
+  }
+  return result;
+}
+
+std::vector<float> OpaqueMeans(const GaussianModel& model) {
+  std::vector<float> xyz;
+  for (size_t i = 0; i < model.size(); ++i) {
+    if (OpacityLogitToAlpha(model.opacity_logits[i]) < kMinAlpha) continue;
+    xyz.insert(xyz.end(), &model.means[3 * i], &model.means[3 * i + 3]);
+  }
+  return xyz.size() >= 30 ? xyz : model.means;
+}
+
+std::vector<size_t> ProbeViews(const TrainingViews& views, int count) {
+  std::vector<size_t> out;
+  const size_t n = std::min<size_t>(std::max(count, 1), views.NumViews());
+  for (size_t k = 0; k < n; ++k) out.push_back(k * views.NumViews() / n);
+  return out;
+}
+
+}  // namespace
+
+RenderCamera AlignedViews::Camera(size_t view) const {
+  return TransformCamera(base_.Camera(view), transform_);
+}
+
+SimilarityTransform Inverse(const SimilarityTransform& t) {
+  SimilarityTransform inverse;
+  inverse.scale = 1 / t.scale;
+  inverse.rotation = t.rotation.transpose();
+  inverse.translation = -inverse.rotation * t.translation / t.scale;
+  return inverse;
+}
+
+double PsnrAgainstPhotos(Rasterizer& rasterizer, const GaussianModel& model,
+                         const TrainingViews& views,
+                         const std::vector<size_t>& view_ids,
+                         const std::array<float, 3>& background) {
+  double sum = 0;
+  ImageRGB image;
+  RenderOptions options;
+  options.background = background;
+  for (size_t v : view_ids) {
+    rasterizer.Forward(model, views.Camera(v), options, &image, nullptr);
+    for (float& x : image.data) x = std::clamp(x, 0.f, 1.f);
+    sum += Psnr(image, *views.Image(v));
+  }
+  return view_ids.empty() ? 0 : sum / view_ids.size();
+}
+
+std::vector<CloudAlignment> AlignPointClouds(const std::vector<float>& source,
+                                             const std::vector<float>& target,
+                                             int keep) {
+  if (source.size() < 30 || target.size() < 30) {
+    Fail("align point clouds: fewer than 10 points");
+  }
+  const Matrix3Xd src = Subsample(source, kSearchPoints);
+  const Matrix3Xd tgt = Subsample(target, kSearchPoints);
+  const Matrix3Xd coarse_src = Subsample(source, kCoarsePoints);
+  const Matrix3Xd coarse_tgt = Subsample(target, kCoarsePoints);
+  const Frame fs = PrincipalFrame(src), ft = PrincipalFrame(tgt);
+  if (!(fs.spread > 0) || !(ft.spread > 0)) {
+    Fail("align point clouds: a cloud has collapsed to a point");
+  }
+  // Starts: the principal frames matched every way, the world's axes (for
+  // normalisations that only permute or flip them), and rotations spread
+  // over all of them (clouds whose principal axes are not distinct).
+  std::vector<Matrix3d> rotations;
+  for (const Matrix3d& q : AxisRotations()) {
+    rotations.push_back(ft.axes * q * fs.axes.transpose());
+    rotations.push_back(q);
+  }
+  std::mt19937 rng(1);
+  std::normal_distribution<double> normal;
+  for (int k = 0; k < kSpreadStarts; ++k) {
+    rotations.push_back(
+        Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng))
+            .normalized()
+            .toRotationMatrix());
+  }
+  std::vector<CloudAlignment> found;
+  for (const Matrix3d& rotation : rotations) {
+    SimilarityTransform start;
+    start.scale = ft.spread / fs.spread;
+    start.rotation = rotation;
+    start.translation = ft.centre - start.scale * rotation * fs.centre;
+    found.push_back(RefineIcp(coarse_src, coarse_tgt, ft.spread, start, 10));
+  }
+  std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
+    return a.residual < b.residual;
+  });
+  found = Distinct(found, 2 * keep);
+  for (CloudAlignment& a : found) {
+    a = RefineIcp(src, tgt, ft.spread, a.transform, 10);
+    a = RefinePointToPlane(src, tgt, ft.spread, a, 15);
+  }
+  std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
+    return a.residual < b.residual;
+  });
+  found.resize(std::min<size_t>(found.size(), keep));
+  return found;
+}
+
+ModelPlacement PlaceModel(Rasterizer& rasterizer, const GaussianModel& model,
+                          const std::string& model_path,
+                          const TrainingViews& views,
+                          const std::vector<float>& sfm_points,
+                          const PlacementOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ModelPlacement p;
+  const std::vector<size_t> probes = ProbeViews(views, options.probe_views);
+  p.num_probe_views = probes.size();
+  p.psnr_as_given = p.psnr_placed =
+      PsnrAgainstPhotos(rasterizer, model, views, probes, options.background);
+  const auto finish = [&] {
+    p.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+            .count();
+  };
+  if (p.psnr_as_given >= options.align_below_psnr) {
+    finish();
+    return p;
+  }
+  if (sfm_points.size() >= 30 && model.size() >= 10) {
+    for (const CloudAlignment& a :
+         AlignPointClouds(sfm_points, OpaqueMeans(model), 3)) {
+      const AlignedViews moved(views, a.transform);
+      const double psnr = PsnrAgainstPhotos(rasterizer, model, moved, probes,
+                                            options.background);
+      if (psnr > p.psnr_placed + 1) {
+        p.psnr_placed = psnr;
+        p.workspace_to_model = a.transform;
+        p.residual = a.residual;
+        p.moved = true;
+      }
+    }
+  }
+  finish();
+  if (p.psnr_placed < options.refuse_below_psnr) {
+    char after[128] = " and no alignment to the SfM points did better";
+    if (p.moved) {
+      std::snprintf(after, sizeof(after),
+                    ", %.1f dB at best after aligning it to the SfM points",
+                    p.psnr_placed);
+    }
+    char line[512];
+    std::snprintf(
+        line, sizeof(line),
+        "does not match the workspace's photos: its renders read %.1f dB "
+        "PSNR at %zu cameras as given%s, where a model trained on these "
+        "photos reads %.0f dB or more; likely another scene's model, or "
+        "another workspace or --downscale than it was trained on",
+        p.psnr_as_given, p.num_probe_views, after, options.align_below_psnr);
+    FailAt(model_path, line);
+  }
+  return p;
+}
+
+std::string DescribePlacement(const ModelPlacement& p) {
+  char line[512];
+  if (!p.moved) {
+    std::snprintf(line, sizeof(line),
+                  "the model matches the workspace's photos (PSNR %.2f dB at "
+                  "%zu cameras, %.1f s)",
+                  p.psnr_as_given, p.num_probe_views, p.seconds);
+    return line;
+  }
+  const SimilarityTransform to_workspace = Inverse(p.workspace_to_model);
+  const Vector3d& t = to_workspace.translation;
+  std::snprintf(
+      line, sizeof(line),
+      "the model is in another frame and was aligned to the workspace: "
+      "scale %.5g, rotation %.2f deg, translation (%.4g, %.4g, %.4g) "
+      "(model -> workspace); PSNR against the photos %.2f -> %.2f dB at %zu "
+      "cameras, point residual %.2f%% of the scene, %.1f s; the model "
+      "itself is not moved (the cameras are)",
+      to_workspace.scale, AngleDegrees(to_workspace.rotation), t[0], t[1], t[2],
+      p.psnr_as_given, p.psnr_placed, p.num_probe_views, 100 * p.residual,
+      p.seconds);
+  return line;
+}
+
+void ScaleToModelUnits(const ModelPlacement& placement,
+                       std::vector<DistortionSpec>* layers) {
+  for (DistortionSpec& spec : *layers) {
+    if (spec.kind == DistortionKind::kGaussianNoise) {
+      spec.strength *= placement.workspace_to_model.scale;
+    }
+  }
+}
+
+void ScaleToModelUnits(const ModelPlacement& placement,
+                       std::vector<ModelAttackSpec>* attacks) {
+  for (ModelAttackSpec& spec : *attacks) {
+    if (spec.kind != ModelAttackKind::kDistortion) continue;
+    std::vector<DistortionSpec> one = {spec.distortion};
+    ScaleToModelUnits(placement, &one);
+    spec.distortion = one[0];
+  }
+}
+
+const char kAlignHelp[] =
+    "auto: render the model at a few cameras first and, when it does not "
+    "match the photos (a model saved in a trainer's normalised frame), find "
+    "the similarity from its Gaussians to the SfM points and render the "
+    "cameras moved into the model's frame (the model is never moved); off: "
+    "take it as it is; or similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ] (or a "
+    ".transform.txt file): the transform the model was moved by from the "
+    "workspace's frame";
+
+SimilarityTransform ParseSceneTransform(const std::string& value,
+                                        const std::string& option) {
+  const std::string prefix = "similarity:";
+  std::string text = value;
+  std::string source = option;
+  if (std::filesystem::is_regular_file(value)) {
+    const std::vector<uint8_t> bytes = ReadFileBytes(value);
+    text.assign(bytes.begin(), bytes.end());
+    while (!text.empty() && std::isspace((unsigned char)text.back())) {
+      text.pop_back();
+    }
+    source = value;
+  } else if (text.rfind(prefix, 0) != 0 &&
+             text.find_first_not_of("0123456789+-.,eE ") != std::string::npos) {
+    // Neither numbers nor an existing file: a mistyped file name.
+    FailAt(value, option +
+                      " file not found (give the .transform.txt that watergs "
+                      "attack wrote, or similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ])");
+  }
+  if (text.rfind(prefix, 0) == 0) text = text.substr(prefix.size());
+  try {
+    return ParseSimilarity(text);
+  } catch (const Error& e) {
+    std::string message = e.what();
+    const std::string attack = "--attack: ";
+    if (message.rfind(attack, 0) == 0) message = message.substr(attack.size());
+    Fail(source + ": " + message);
+  }
+}
+
+PlacedViews PlaceByOption(const std::string& command, const std::string& align,
+                          Rasterizer& rasterizer, const GaussianModel& model,
+                          const std::string& model_path,
+                          const Workspace& workspace,
+                          const TrainingViews& views,
+                          const std::array<float, 3>& background) {
+  PlacedViews placed;
+  placed.base = &views;
+  if (align == "off") return placed;
+  if (align != "auto") {
+    placed.placement.workspace_to_model = ParseSceneTransform(align, "--align");
+    placed.placement.moved = true;
+    placed.aligned = std::make_unique<AlignedViews>(
+        views, placed.placement.workspace_to_model);
+    std::printf("%s: cameras moved into the model's frame by --align %s\n",
+                command.c_str(), align.c_str());
+    return placed;
+  }
+  if (!workspace.has_images()) {
+    std::printf(
+        "%s: the model was not checked against the photos (the workspace "
+        "has none); --align SIMILARITY if it was saved in another frame\n",
+        command.c_str());
+    return placed;
+  }
+  std::vector<float> xyz, rgb;
+  workspace.PointCloud(&xyz, &rgb);
+  PlacementOptions options;
+  options.background = background;
+  placed.placement =
+      PlaceModel(rasterizer, model, model_path, views, xyz, options);
+  if (placed.placement.moved) {
+    placed.aligned = std::make_unique<AlignedViews>(
+        views, placed.placement.workspace_to_model);
+  }
+  std::printf("%s: %s\n", command.c_str(),
+              DescribePlacement(placed.placement).c_str());
+  return placed;
+}
+
+}  // namespace watergs
