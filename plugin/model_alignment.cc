@@ -310,6 +310,20 @@ std::vector<float> OpaqueMeans(const GaussianModel& model) {
   return xyz.size() >= 30 ? xyz : model.means;
 }
 
+// Pearson's correlation of two equally long arrays; 0 if either is flat.
+double Correlation(const std::vector<float>& a, const std::vector<float>& b) {
+  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    sa += a[i], sb += b[i];
+    saa += double(a[i]) * a[i], sbb += double(b[i]) * b[i];
+    sab += double(a[i]) * b[i];
+  }
+  const double n = double(a.size());
+  const double va = saa - sa * sa / n, vb = sbb - sb * sb / n;
+  if (!(va > 1e-12 * n) || !(vb > 1e-12 * n)) return 0;
+  return (sab - sa * sb / n) / std::sqrt(va * vb);
+}
+
 std::vector<size_t> ProbeViews(const TrainingViews& views, int count) {
   std::vector<size_t> out;
   const size_t n = std::min<size_t>(std::max(count, 1), views.NumViews());
@@ -331,20 +345,22 @@ SimilarityTransform Inverse(const SimilarityTransform& t) {
   return inverse;
 }
 
-double PsnrAgainstPhotos(Rasterizer& rasterizer, const GaussianModel& model,
-                         const TrainingViews& views,
-                         const std::vector<size_t>& view_ids,
-                         const std::array<float, 3>& background) {
-  double sum = 0;
+PhotoMatch MatchPhotos(Rasterizer& rasterizer, const GaussianModel& model,
+                       const TrainingViews& views,
+                       const std::vector<size_t>& view_ids,
+                       const std::array<float, 3>& background) {
+  PhotoMatch match;
   ImageRGB image;
   RenderOptions options;
   options.background = background;
   for (size_t v : view_ids) {
     rasterizer.Forward(model, views.Camera(v), options, &image, nullptr);
     for (float& x : image.data) x = std::clamp(x, 0.f, 1.f);
-    sum += Psnr(image, *views.Image(v));
+    const std::shared_ptr<const ImageRGB> photo = views.Image(v);
+    match.psnr += Psnr(image, *photo) / view_ids.size();
+    match.correlation += Correlation(image.data, photo->data) / view_ids.size();
   }
-  return view_ids.empty() ? 0 : sum / view_ids.size();
+  return match;
 }
 
 std::vector<CloudAlignment> AlignPointClouds(const std::vector<float>& source,
@@ -409,14 +425,16 @@ ModelPlacement PlaceModel(Rasterizer& rasterizer, const GaussianModel& model,
   ModelPlacement p;
   const std::vector<size_t> probes = ProbeViews(views, options.probe_views);
   p.num_probe_views = probes.size();
-  p.psnr_as_given = p.psnr_placed =
-      PsnrAgainstPhotos(rasterizer, model, views, probes, options.background);
+  const PhotoMatch given =
+      MatchPhotos(rasterizer, model, views, probes, options.background);
+  p.psnr_as_given = p.psnr_placed = given.psnr;
+  p.correlation_as_given = p.correlation_placed = given.correlation;
   const auto finish = [&] {
     p.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
             .count();
   };
-  if (p.psnr_as_given >= options.align_below_psnr) {
+  if (p.correlation_as_given >= options.align_below_correlation) {
     finish();
     return p;
   }
@@ -424,10 +442,11 @@ ModelPlacement PlaceModel(Rasterizer& rasterizer, const GaussianModel& model,
     for (const CloudAlignment& a :
          AlignPointClouds(sfm_points, OpaqueMeans(model), 3)) {
       const AlignedViews moved(views, a.transform);
-      const double psnr = PsnrAgainstPhotos(rasterizer, model, moved, probes,
-                                            options.background);
-      if (psnr > p.psnr_placed + 1) {
-        p.psnr_placed = psnr;
+      const PhotoMatch match =
+          MatchPhotos(rasterizer, model, moved, probes, options.background);
+      if (match.correlation > p.correlation_placed + 0.05) {
+        p.psnr_placed = match.psnr;
+        p.correlation_placed = match.correlation;
         p.workspace_to_model = a.transform;
         p.residual = a.residual;
         p.moved = true;
@@ -435,33 +454,38 @@ ModelPlacement PlaceModel(Rasterizer& rasterizer, const GaussianModel& model,
     }
   }
   finish();
-  if (p.psnr_placed < options.refuse_below_psnr) {
-    char after[128] = " and no alignment to the SfM points did better";
+  if (options.refuse &&
+      p.correlation_placed < options.refuse_below_correlation) {
+    char after[160] = " and no alignment to the SfM points did better";
     if (p.moved) {
       std::snprintf(after, sizeof(after),
-                    ", %.1f dB at best after aligning it to the SfM points",
-                    p.psnr_placed);
+                    ", %.2f (%.1f dB) at best after aligning it to the SfM "
+                    "points",
+                    p.correlation_placed, p.psnr_placed);
     }
-    char line[512];
+    char line[640];
     std::snprintf(
         line, sizeof(line),
-        "does not match the workspace's photos: its renders read %.1f dB "
-        "PSNR at %zu cameras as given%s, where a model trained on these "
-        "photos reads %.0f dB or more; likely another scene's model, or "
-        "another workspace or --downscale than it was trained on",
-        p.psnr_as_given, p.num_probe_views, after, options.align_below_psnr);
+        "does not match the workspace's photos: its renders correlate %.2f "
+        "with them (PSNR %.1f dB) at %zu cameras as given%s, where a model "
+        "trained on these photos correlates %.1f or more; likely another "
+        "scene's model, or another workspace or --downscale than it was "
+        "trained on",
+        p.correlation_as_given, p.psnr_as_given, p.num_probe_views, after,
+        options.align_below_correlation);
     FailAt(model_path, line);
   }
   return p;
 }
 
 std::string DescribePlacement(const ModelPlacement& p) {
-  char line[512];
+  char line[640];
   if (!p.moved) {
     std::snprintf(line, sizeof(line),
-                  "the model matches the workspace's photos (PSNR %.2f dB at "
-                  "%zu cameras, %.1f s)",
-                  p.psnr_as_given, p.num_probe_views, p.seconds);
+                  "the model matches the workspace's photos (PSNR %.2f dB, "
+                  "correlation %.3f at %zu cameras, %.1f s)",
+                  p.psnr_as_given, p.correlation_as_given, p.num_probe_views,
+                  p.seconds);
     return line;
   }
   const SimilarityTransform to_workspace = Inverse(p.workspace_to_model);
@@ -470,12 +494,12 @@ std::string DescribePlacement(const ModelPlacement& p) {
       line, sizeof(line),
       "the model is in another frame and was aligned to the workspace: "
       "scale %.5g, rotation %.2f deg, translation (%.4g, %.4g, %.4g) "
-      "(model -> workspace); PSNR against the photos %.2f -> %.2f dB at %zu "
-      "cameras, point residual %.2f%% of the scene, %.1f s; the model "
-      "itself is not moved (the cameras are)",
+      "(model -> workspace); against the photos at %zu cameras PSNR %.2f "
+      "-> %.2f dB, correlation %.3f -> %.3f; point residual %.2f%% of the "
+      "scene, %.1f s; the model itself is not moved (the cameras are)",
       to_workspace.scale, AngleDegrees(to_workspace.rotation), t[0], t[1], t[2],
-      p.psnr_as_given, p.psnr_placed, p.num_probe_views, 100 * p.residual,
-      p.seconds);
+      p.num_probe_views, p.psnr_as_given, p.psnr_placed, p.correlation_as_given,
+      p.correlation_placed, 100 * p.residual, p.seconds);
   return line;
 }
 
@@ -542,7 +566,8 @@ PlacedViews PlaceByOption(const std::string& command, const std::string& align,
                           const std::string& model_path,
                           const Workspace& workspace,
                           const TrainingViews& views,
-                          const std::array<float, 3>& background) {
+                          const std::array<float, 3>& background,
+                          bool suspect) {
   PlacedViews placed;
   placed.base = &views;
   if (align == "off") return placed;
@@ -566,8 +591,18 @@ PlacedViews PlaceByOption(const std::string& command, const std::string& align,
   workspace.PointCloud(&xyz, &rgb);
   PlacementOptions options;
   options.background = background;
+  options.refuse = !suspect;
   placed.placement =
       PlaceModel(rasterizer, model, model_path, views, xyz, options);
+  if (suspect &&
+      placed.placement.correlation_placed < options.refuse_below_correlation) {
+    std::fprintf(stderr,
+                 "%s: %s correlates %.2f with the photos (PSNR %.1f dB): "
+                 "damaged by an attack, or not of this scene\n",
+                 command.c_str(), model_path.c_str(),
+                 placed.placement.correlation_placed,
+                 placed.placement.psnr_placed);
+  }
   if (placed.placement.moved) {
     placed.aligned = std::make_unique<AlignedViews>(
         views, placed.placement.workspace_to_model);

@@ -39,12 +39,18 @@ class AlignedViews : public TrainingViews {
   SimilarityTransform transform_;
 };
 
-// Mean PSNR (dB) of `model`'s whole-frame renders at `view_ids` of `views`
-// against their photos.
-double PsnrAgainstPhotos(Rasterizer& rasterizer, const GaussianModel& model,
-                         const TrainingViews& views,
-                         const std::vector<size_t>& view_ids,
-                         const std::array<float, 3>& background);
+struct PhotoMatch {
+  // Means over the views: PSNR (dB) and Pearson's correlation over every
+  // pixel and channel (0 where either image is flat).
+  double psnr = 0, correlation = 0;
+};
+
+// How `model`'s whole-frame renders at `view_ids` of `views` match their
+// photos.
+PhotoMatch MatchPhotos(Rasterizer& rasterizer, const GaussianModel& model,
+                       const TrainingViews& views,
+                       const std::vector<size_t>& view_ids,
+                       const std::array<float, 3>& background);
 
 struct CloudAlignment {
   // source -> target.
@@ -67,13 +73,19 @@ std::vector<CloudAlignment> AlignPointClouds(const std::vector<float>& source,
 struct PlacementOptions {
   // Views rendered for the check (spread over the workspace's).
   int probe_views = 3;
-  // Below this PSNR against the photos the model is searched for a
-  // similarity: trained models of the scenes here read 24-31 dB held-out
-  // (demo, fern, horns); the same models in a trainer's normalised frame,
-  // or another scene, 10-15 dB.
-  double align_below_psnr = 20;
-  // A model that stays below this after the search is refused.
-  double refuse_below_psnr = 16;
+  // The check measures how well the renders correlate with the photos
+  // (Pearson's correlation over every pixel and channel, the mean over the
+  // probe views): unlike PSNR it does not depend on how much of a scene is
+  // plain background, and a flat image scores 0. Below this correlation the
+  // model is searched for a similarity: trained models of the scenes here
+  // score 0.9 or more (demo, fern, horns); the same models in a trainer's
+  // normalised frame, or another scene, near 0.
+  double align_below_correlation = 0.7;
+  // A model whose correlation stays below this after the search is refused
+  // (with `refuse`; a suspect, which an attack may have damaged, is only
+  // warned about).
+  double refuse_below_correlation = 0.35;
+  bool refuse = true;
   std::array<float, 3> background = {0, 0, 0};
 };
 
@@ -82,8 +94,10 @@ struct ModelPlacement {
   // model was already in the workspace's frame).
   SimilarityTransform workspace_to_model;
   bool moved = false;
-  // Mean PSNR against the photos at the probe views, as given and as placed.
+  // Mean PSNR and correlation against the photos at the probe views, as
+  // given and as placed.
   double psnr_as_given = 0, psnr_placed = 0;
+  double correlation_as_given = 0, correlation_placed = 0;
   size_t num_probe_views = 0;
   // ICP residual of the found similarity (CloudAlignment::residual).
   double residual = 0;
@@ -93,7 +107,8 @@ struct ModelPlacement {
 // Renders `model` at a few of `views` and, when it does not match their
 // photos, aligns its Gaussians' centres to `sfm_points` (the workspace's
 // SfM points, N x 3) and keeps the candidate whose renders match best.
-// Throws Error naming `model_path` with the figures when nothing matches.
+// Throws Error naming `model_path` with the figures when nothing matches
+// (options.refuse).
 ModelPlacement PlaceModel(Rasterizer& rasterizer, const GaussianModel& model,
                           const std::string& model_path,
                           const TrainingViews& views,
@@ -139,12 +154,14 @@ void ScaleToModelUnits(const ModelPlacement& placement,
 // --align: "auto" (PlaceModel; without photos in the workspace nothing is
 // checked), "off" (the model is taken as it is), or a scene transform
 // (ParseSceneTransform). Prints one line "COMMAND: ..." (DescribePlacement)
-// unless off. Throws Error.
+// unless off. Throws Error; a `suspect` (not the owner's own model) that
+// matches nothing is only warned about on stderr.
 PlacedViews PlaceByOption(const std::string& command, const std::string& align,
                           Rasterizer& rasterizer, const GaussianModel& model,
                           const std::string& model_path,
                           const Workspace& workspace,
                           const TrainingViews& views,
-                          const std::array<float, 3>& background);
+                          const std::array<float, 3>& background,
+                          bool suspect = false);
 
 }  // namespace watergs

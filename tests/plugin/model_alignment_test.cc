@@ -155,6 +155,7 @@ TEST_P(PlaceModelTest, FindsTheFrameOfAMovedModel) {
       PlaceModel(*rasterizer, model, "model.ply", photos, sfm);
   EXPECT_FALSE(same.moved);
   EXPECT_GT(same.psnr_as_given, 40);
+  EXPECT_GT(same.correlation_as_given, 0.999);
 
   for (int trial = 0; trial < 2; ++trial) {
     const SimilarityTransform truth_move = RandomSimilarity(rng);
@@ -163,8 +164,8 @@ TEST_P(PlaceModelTest, FindsTheFrameOfAMovedModel) {
     const ModelPlacement p =
         PlaceModel(*rasterizer, moved, "moved.ply", photos, sfm);
     ASSERT_TRUE(p.moved) << DescribePlacement(p);
-    // Sparse points on black: even a model in the wrong frame reads 16-19 dB.
-    EXPECT_LT(p.psnr_as_given, 20) << DescribePlacement(p);
+    EXPECT_LT(p.correlation_as_given, 0.7) << DescribePlacement(p);
+    EXPECT_GT(p.correlation_placed, 0.95) << DescribePlacement(p);
     EXPECT_GT(p.psnr_placed, 30) << DescribePlacement(p);
     EXPECT_NEAR(p.workspace_to_model.scale / truth_move.scale, 1, 0.02);
     EXPECT_LT(RotationErrorDegrees(p.workspace_to_model.rotation,
