@@ -514,7 +514,9 @@ PYBIND11_MODULE(_watergs, m) {
   m.doc() =
       "watergs' C++ core: the CLI commands run in-process, models, "
       "workspaces, cameras. Use the `watergs` package, not this module.";
-  m.attr("__version__") = WATERGS_VERSION;
+  m.attr("__version__") = Version();
+  // The git commit the module was built from ("unknown" outside a checkout).
+  m.attr("__commit__") = GitCommit();
   py::register_exception<Error>(m, "Error", PyExc_RuntimeError);
 
   m.def("run_command", &RunCommand, py::arg("name"), py::arg("args"),

@@ -101,7 +101,8 @@ int RunDecoderStats(int argc, char** argv) {
       }
       json << ", \"per_image\": " << per_image.dump();
     }
-    json << "}\n";
+    json << ", \"provenance\": " << watergs::Provenance(argc, argv).dump()
+         << "}\n";
     watergs::AtomicWriteFile(json_path, json.str());
   }
   return 0;

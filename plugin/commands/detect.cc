@@ -500,4 +500,5 @@ int RunDetect(int argc, char** argv) {
 WATERGS_COMMAND(detect,
                 "Detects a WATER-GS watermark in image files (screenshots, "
                 "frames, photos of a screen)",
+    j["provenance"] = Provenance(argc, argv);
                 watergs::RunDetect);

@@ -206,7 +206,7 @@ void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
   request.key_option = a.key_option;
   request.workspace = a.workspace;
   request.background = a.background;
-  request.generator = std::string("watergs ") + WATERGS_VERSION;
+  request.generator = VersionLine();
   request.commands.push_back(
       {"The embedding, as run", CommandLine(argc, argv)});
   std::string report_command =

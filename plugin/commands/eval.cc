@@ -235,7 +235,8 @@ int RunEval(int argc, char** argv) {
       ".\n\n" + EvaluationToMarkdown(report);
   std::cout << markdown;
   if (!output_path.empty()) {
-    AtomicWriteFile(output_path + ".json", EvaluationToJson(report));
+    AtomicWriteFile(output_path + ".json",
+                    WithProvenance(EvaluationToJson(report), 2, argc, argv));
     AtomicWriteFile(output_path + ".md", markdown);
     std::cout << "\neval: wrote " << output_path << ".json and " << output_path
               << ".md\n";
@@ -250,7 +251,7 @@ int RunEval(int argc, char** argv) {
     request.key_option = key_option;
     request.workspace = workspace_options;
     request.background = background;
-    request.generator = std::string("watergs ") + WATERGS_VERSION;
+    request.generator = VersionLine();
     request.commands.push_back(
         {"This evaluation and report (every figure in it)",
          CommandLine(argc, argv)});

@@ -256,14 +256,13 @@ int RunExtract(int argc, char** argv) {
     }
   }
   if (!json_path.empty()) {
-    std::string text = ExtractionToJson(r);
+    nlohmann::json j = nlohmann::json::parse(ExtractionToJson(r));
     if (!raw_path.empty()) {
-      nlohmann::json j = nlohmann::json::parse(text);
       j["owner"] = nlohmann::json::parse(ExtractionToJson(both.owner));
       j["owner"]["raw_path"] = raw_path;
-      text = j.dump(2) + "\n";
     }
-    AtomicWriteFile(json_path, text);
+    j["provenance"] = Provenance(argc, argv);
+    AtomicWriteFile(json_path, j.dump(2) + "\n");
   }
   return 0;
 }

@@ -31,7 +31,10 @@ void PrintCommands() {
 int main(int argc, char** argv) {
   if (argc >= 2 && (!std::strcmp(argv[1], "--version") ||
                     !std::strcmp(argv[1], "version"))) {
-    std::cout << "watergs " << WATERGS_VERSION << "\n";
+    std::cout << "watergs " << watergs::Version() << "\ncommit "
+              << watergs::GitCommit()
+              << (watergs::GitDirty() == 1 ? " (uncommitted changes)" : "")
+              << "\n";
     return 0;
   }
   // `watergs help <command>` is `watergs <command> -h`.

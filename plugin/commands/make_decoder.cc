@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 
@@ -185,7 +186,8 @@ int RunMakeDecoder(int argc, char** argv) {
          << ", \"steer_psnr\": " << f.steer_psnr
          << ", \"steer_steps\": " << f.steer_steps;
   }
-  json << "}\n";
+  json << ", \"provenance\": " << watergs::Provenance(argc, argv).dump()
+       << "}\n";
   if (!json_path.empty()) watergs::AtomicWriteFile(json_path, json.str());
   return 0;
 }

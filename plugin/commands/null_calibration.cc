@@ -193,7 +193,9 @@ int RunNullCalibration(int argc, char** argv) {
   std::cout << markdown;
   if (!markdown_path.empty()) AtomicWriteFile(markdown_path, markdown);
   if (!json_path.empty()) {
-    AtomicWriteFile(json_path, NullCalibrationToJson(calibration));
+    AtomicWriteFile(
+        json_path,
+        WithProvenance(NullCalibrationToJson(calibration), 1, argc, argv));
   }
   return 0;
 }

@@ -187,6 +187,7 @@ int RunRender(int argc, char** argv) {
       {"psnr", truth ? nlohmann::json(psnr_sum / n) : nlohmann::json()},
       {"ssim", truth ? nlohmann::json(ssim_sum / n) : nlohmann::json()},
       {"views", per_view}};
+  report["provenance"] = Provenance(argc, argv);
   AtomicWriteFile(output_path + "/render_report.json", report.dump(2) + "\n");
   // "all 9 views", "1 test view", "7 train views".
   const size_t count = selected.size();

@@ -170,7 +170,7 @@ int RunReport(int argc, char** argv) {
   std::vector<size_t> eval_views;
   for (size_t k = 0; k < count; ++k) eval_views.push_back(k * n / count);
 
-  request.generator = std::string("watergs ") + WATERGS_VERSION;
+  request.generator = VersionLine();
   request.commands.push_back(
       {"This report (every figure in it)", CommandLine(argc, argv)});
   auto rasterizer = MakeRasterizer(parser.device());

@@ -142,7 +142,8 @@ void CheckOutputFolder(const TrainArgs& a, const Workspace& workspace) {
 void WriteReport(const std::string& path, const TrainArgs& a,
                  const Trainer& trainer, const EvalResult& eval,
                  const std::string& split, const std::vector<size_t>& views,
-                 const TrainingViews& source, double extent) {
+                 const TrainingViews& source, double extent,
+                 const nlohmann::json& provenance) {
   nlohmann::json j;
   j["iterations"] = trainer.iteration();
   j["num_gaussians"] = trainer.model().size();
@@ -172,6 +173,7 @@ void WriteReport(const std::string& path, const TrainArgs& a,
                         {"ssim", eval.view_ssim[k]}});
   }
   j["views"] = per_view;
+  j["provenance"] = provenance;
   AtomicWriteFile(path, j.dump(2) + "\n");
 }
 
@@ -326,7 +328,7 @@ int RunTrain(int argc, char** argv) {
                     background, trainer.active_sh_degree());
   const std::string split = held_out ? "test" : "train";
   WriteReport(out + "/report.json", a, trainer, eval, split, metric_views,
-              views, extent);
+              views, extent, Provenance(argc, argv));
 
   std::printf("train: %lld iterations in %s (%.1f it/s), %zu Gaussians\n",
               static_cast<long long>(trainer.iteration()),

@@ -24,7 +24,7 @@ command (KeyboardInterrupt). numpy is needed only by the calls that take or
 return arrays. docs/python.md has the details.
 """
 
-from ._watergs import Camera, Error, Model, Workspace, __version__
+from ._watergs import Camera, Error, Model, Workspace, __commit__, __version__
 from ._watergs import cuda_available as _cuda_available
 from ._commands import (
     AttackResult,

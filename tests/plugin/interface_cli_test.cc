@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <string>
 
 #include "gaussian/formats/ply_io.h"
@@ -64,6 +65,44 @@ TEST(InterfaceCli, HelpVersionDefaultsAndMessageFormats) {
   EXPECT_EQ(version.output.rfind("watergs ", 0), 0u) << version.output;
   EXPECT_TRUE(std::isdigit(static_cast<unsigned char>(version.output[8])))
       << version.output;
+}
+
+// `watergs --version` names the commit the binary was built from (and
+// whether the tree had uncommitted changes), and every JSON a command writes
+// carries the command as run, the version and the commit.
+TEST(InterfaceCli, VersionNamesTheCommitAndJsonNamesTheCommand) {
+  const auto version = RunCommand(WatergsBin() + " --version");
+  ASSERT_EQ(version.exit_code, 0) << version.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      version.output, m,
+      std::regex("^watergs ([0-9][^\\n]*)\\ncommit ([0-9a-f]{40}|unknown)"
+                 "( \\(uncommitted changes\\))?\\n$")))
+      << version.output;
+  const std::string number = m[1], commit = m[2];
+  // Built from this git checkout (the tests' sources), the commit is known.
+  if (RunCommand("git -C " + std::string(WATERGS_SOURCE_DIR) +
+                 " rev-parse HEAD")
+          .exit_code == 0) {
+    EXPECT_NE(commit, "unknown") << version.output;
+  }
+
+  TempDir dir("interface_provenance");
+  const Scene s = MakeScene(dir);
+  const std::string json = dir / "extract.json";
+  const std::string args = "extract --input_path " + s.ply +
+                           " --workspace_path " + s.ws + " --decoder " +
+                           s.decoder + " --message hex:a5c3 --json " + json;
+  const auto run = RunCommand(WatergsBin() + " " + args);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json provenance = ReadJson(json)["provenance"];
+  EXPECT_EQ(provenance["command"], "watergs " + args) << provenance;
+  EXPECT_EQ(provenance["version"], number) << provenance;
+  EXPECT_EQ(provenance["commit"], commit) << provenance;
+  EXPECT_EQ(provenance["dirty"].is_null(), commit == "unknown") << provenance;
+  if (!provenance["dirty"].is_null()) {
+    EXPECT_EQ(provenance["dirty"].get<bool>(), m[3].matched) << provenance;
+  }
 }
 
 TEST(InterfaceCli, MessageTooLongStatesTheLimitInCharacters) {

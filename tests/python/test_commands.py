@@ -145,7 +145,16 @@ def test_embed_extract_agree_with_the_cli(trained, tmp_path):
                     f"--message={MESSAGE}", f"--downscale={DOWNSCALE}",
                     "--max_views=8", f"--json={cli_json}"], check=True,
                    capture_output=True, timeout=300)
-    assert json.loads(cli_json.read_text()) == result.report
+    # Each names the command that wrote it (the module runs the CLI's
+    # command in-process, so both are `watergs extract ...`), at one commit.
+    cli_report = json.loads(cli_json.read_text())
+    cli_provenance = cli_report.pop("provenance")
+    report = dict(result.report)
+    provenance = report.pop("provenance")
+    assert cli_report == report
+    assert cli_provenance["command"].startswith("watergs extract --input_path=")
+    assert provenance["command"].startswith("watergs extract ")
+    assert cli_provenance["commit"] == provenance["commit"] == watergs.__commit__
 
     # Without a claimed message: the bits, no verdict.
     bare = watergs.extract(wm.output_path, SCENE, DECODER, downscale=DOWNSCALE,
