@@ -240,10 +240,9 @@ int RunDetect(int argc, char** argv) {
   parser.Add("index_renders", &reading.index_renders,
              "Renders of the raw model at this many viewpoints between the "
              "workspace's cameras, added to the registration index: an image "
-             "taken far from every photo registers to a render near it (the "
-             "demo's 20 screenshots: 19 read instead of 17; 13 s at "
-             "240x180 on 2 cores, rendered at the workspace cameras' size; 0 "
-             "= the photos only)");
+             "taken far from every photo registers to a render near it "
+             "(rendered at the workspace cameras' size; detect prints how "
+             "many images registered; 0 = the photos only)");
   parser.Add("refine_pose", &reading.refine,
              "After registration, move each camera to where the raw model's "
              "render matches the image best (photometric least squares): "
