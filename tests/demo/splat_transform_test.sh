@@ -3,14 +3,17 @@
 # a watermarked demo model (120x90, short training and embedding) is converted
 #   PLY -> compressed PLY -> PLY,  PLY -> .spz (version 4, the converter's default) -> PLY,
 #   PLY -> .sog (bundled) -> PLY  and  PLY -> SOG meta.json with its images
-# by splat-transform, and `watergs extract` must say "watermark present" on every file, the
-# converter's intermediate files included (watergs reads them directly). The other way round,
+# by splat-transform, and `watergs extract` must say "watermark present" over the 48 cameras on every
+# file, the converter's intermediate files included (watergs reads them directly), with at most
+# MAX_WRONG of the 48 bits wrong (2; measured 0 on every file with splat-transform 2.7.1,
+# docs/formats.md: "present" alone would let 7 wrong pass). The other way round,
 # a .sog written by `watergs attack sog` is converted to PLY by splat-transform: its decoder must
 # read our file as present too. (SOG's SH palette: -g cpu, no WebGPU here; -i 1 k-means round,
 # as the CPU takes ~13 s a round on the demo's 40k Gaussians.) Also checks that the
 # converter really rewrote the data (the files differ from the input) and kept the count, and that
-# each file renders within a bound of the watermarked PLY's renders (the 48 cameras; bounds about 3 dB
-# under what was measured at commit 2ef7389+1 with splat-transform 2.7.1: compressed PLY 36.1 dB,
+# each file renders within a bound of the watermarked PLY's renders (at eval's 6 held-out cameras,
+# every 8th of the 48; bounds about 3 dB under what was measured at commit 2ef7389+1 with
+# splat-transform 2.7.1: compressed PLY 36.1 dB,
 # SPZ 43.4, SOG 46.8, watergs' SOG read by splat-transform 41.0, which was 21.1 dB before watergs'
 # 1D quantiser found the least-squares codebook): a reader or writer that keeps the watermark but
 # changes the scene (an SH sign, a colour offset, a codebook that loses a tail) fails here.
@@ -31,6 +34,7 @@ prefix="${WATERGS_NPM_PREFIX:-${XDG_CACHE_HOME:-$HOME/.cache}/watergs/npm}"
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
 fail() { echo "splat_transform_test: FAIL: $*" >&2; exit 1; }
+MAX_WRONG="${MAX_WRONG:-2}"  # of 48 bits, over the 48 cameras (measured 0)
 
 node="$prefix/node_modules/.bin/node"
 cli="$prefix/node_modules/@playcanvas/splat-transform/bin/cli.mjs"
@@ -60,19 +64,22 @@ verdict() {  # FILE: prints the verdict over the 48 cameras
     --json "$out/extract.json" > "$out/extract.txt"
   python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["verdict"], "(%d of %d bits wrong)" % (round(j["ber"]*j["num_bits"]), j["num_bits"]))' "$out/extract.json"
 }
-fidelity() {  # FILE: PSNR (dB) of its renders against wm.ply's at the 48 cameras
+fidelity() {  # FILE: PSNR (dB) of its renders against wm.ply's at eval's 6 held-out cameras
   rm -f "$out/fidelity.json"
   "$bin" eval --raw_path "$out/wm.ply" --input_path "$1" "${common[@]}" --decoder "$decoder" \
     --message "$message" --attacks '' --image_attacks '' --lpips_weights '' \
     --output_path "$out/fidelity" > "$out/fidelity.log" 2>&1 || { cat "$out/fidelity.log"; fail "eval $1"; }
   python3 -c 'import json,sys; q={r["comparison"]: r["mean"]["psnr"] for r in json.load(open(sys.argv[1]))["quality"]}; p=q["watermarked vs raw renders"]; print("inf" if p is None else "%.2f" % p)' "$out/fidelity.json"
 }
-check() {  # LABEL FILE MIN_DB: "present", the same count, renders within MIN_DB of wm.ply's
-  local v psnr
+check() {  # LABEL FILE MIN_DB: "present" with at most MAX_WRONG bits wrong, the same count, renders
+           # within MIN_DB of wm.ply's
+  local v psnr wrong
   v="$(verdict "$2")"
+  wrong="$(python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(round(j["ber"]*j["num_bits"]))' "$out/extract.json")"
   psnr="$(fidelity "$2")"
   echo "splat_transform_test: $1: $v, renders $psnr dB from the watermarked PLY's"
   case "$v" in "watermark present"*) ;; *) fail "$1: '$v'";; esac
+  [ "$wrong" -le "$MAX_WRONG" ] || fail "$1: $wrong of 48 bits wrong (> $MAX_WRONG)"
   [ "$(count "$2")" = "$n" ] || fail "$1: $(count "$2") Gaussians, the watermarked file has $n"
   awk -v p="$psnr" -v m="$3" 'BEGIN { exit !(p >= m) }' || fail "$1: renders $psnr dB from the watermarked PLY's (< $3 dB): the reader or writer changed the scene"
 }

@@ -5,6 +5,7 @@
 // similarity transform with moved cameras, and one-line errors.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -258,6 +259,21 @@ TEST(EvalCli, DrawsRandomAttacksManyTimesKeepingTheFirstDrawAsTheRow) {
       counted += side["verdicts"][v].get<int>();
     }
     EXPECT_EQ(counted, 6);
+    // Each figure's mean, min and max are those of per_draw's values.
+    for (const char* figure : {"view_ber", "bit_errors"}) {
+      double sum = 0, low = 1e300, high = -1e300;
+      for (const auto& d : per_draw) {
+        const double value = d[figure].get<double>();
+        sum += value;
+        low = std::min(low, value);
+        high = std::max(high, value);
+      }
+      const auto& spread = side[figure];
+      EXPECT_NEAR(spread["mean"].get<double>(), sum / 6, 1e-12)
+          << figure << (owner ? " owner" : " blind");
+      EXPECT_EQ(spread["min"].get<double>(), low) << figure;
+      EXPECT_EQ(spread["max"].get<double>(), high) << figure;
+    }
   }
   // Draw d is the same draw however many are drawn: 3 draws are the first 3
   // of 6 (so a shorter run reads as a prefix of a longer one).
