@@ -18,6 +18,7 @@
 #include "plugin/command.h"
 #include "plugin/embed_inputs.h"
 #include "plugin/option_parser.h"
+#include "watermark/bit_decoder.h"
 #include "watermark/concat_encoder.h"
 #include "watermark/extractor.h"
 #include "watermark/message.h"
@@ -82,7 +83,8 @@ void AddOptions(OptionParser* parser, ConcatArgs* a) {
   parser->Add("image_path", &a->workspace.image_path,
               "Image folder (default <workspace>/images)");
   parser->Add("downscale", &a->workspace.downscale, "Image downscale: 1,2,4,8");
-  parser->AddRequired("decoder", &a->decoder_path, "Decoder weights file");
+  a->decoder_path = ShippedDecoderPath();
+  parser->Add("decoder", &a->decoder_path, kDecoderHelp);
   parser->AddRequired("message", &a->message,
                       std::string("Message: ") + kMessageFormats);
   parser->Add("key", &a->key_option, kKeyHelp);

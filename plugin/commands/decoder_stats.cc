@@ -32,7 +32,8 @@ int RunDecoderStats(int argc, char** argv) {
       "Decodes unmarked images (whole, or random square crops) and reports "
       "the fraction of 1-bits, the mean |correlation| between bits and how "
       "many images the verdict would call watermarked for a claimed message.");
-  parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  decoder_path = watergs::ShippedDecoderPath();
+  parser.Add("decoder", &decoder_path, watergs::kDecoderHelp);
   parser.AddRequired("image_path", &image_path,
                      "Folder of unmarked images (jpg/png)");
   parser.Add("message", &message,

@@ -28,6 +28,7 @@
 #include "gaussian/util/text_util.h"
 #include "plugin/command.h"
 #include "plugin/image_registration.h"
+#include "plugin/model_alignment.h"
 #include "plugin/option_parser.h"
 #include "plugin/photometric_refinement.h"
 #include "plugin/suspect_reference.h"
@@ -147,9 +148,16 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
   registration.min_inliers = 8;
   ImageRegistrar registrar(workspace, views, registration);
   const std::unique_ptr<Rasterizer> rasterizer = MakeRasterizer(device);
+  // Images register in the photos' frame; a raw model saved in another
+  // frame is rendered from the cameras moved into it.
+  const SimilarityTransform to_model =
+      PlaceByOption("detect", "auto", *rasterizer, raw.model, raw_path,
+                    workspace, views, {0.f, 0.f, 0.f})
+          .placement.workspace_to_model;
   OwnerImages out;
   const CameraRenderer render = [&](const RenderCamera& camera) {
-    return RenderClamped(*rasterizer, raw.model, camera, {0.f, 0.f, 0.f});
+    return RenderClamped(*rasterizer, raw.model,
+                         TransformCamera(camera, to_model), {0.f, 0.f, 0.f});
   };
   if (reading.index_renders > 0) {
     ProgressBar bar("detect: indexing renders", reading.index_renders);
@@ -161,7 +169,10 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
           return render(camera);
         },
         [&](const RenderCamera& camera) {
-          return RenderDepth(*rasterizer, raw.model, camera);
+          std::vector<float> depth = RenderDepth(
+              *rasterizer, raw.model, TransformCamera(camera, to_model));
+          for (float& d : depth) d /= to_model.scale;  // workspace units
+          return depth;
         });
     bar.Finish(std::to_string(registrar.IndexSize()) +
                " features on the photos and renders");
@@ -212,7 +223,8 @@ int RunDetect(int argc, char** argv) {
       "images: binomial p-value under the null hypothesis of unmarked "
       "images; 'watermark present' at p <= --false_positive_rate, 'absent' "
       "above p = 0.01, 'inconclusive' between.");
-  parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  decoder_path = ShippedDecoderPath();
+  parser.Add("decoder", &decoder_path, kDecoderHelp);
   parser.AddRequired("image_path", &image_path,
                      "Image files (PNG/JPEG, 8 or 16 bits) and folders of "
                      "them, comma-separated; a folder: its image files, "
@@ -488,6 +500,7 @@ int RunDetect(int argc, char** argv) {
       o["registrations"] = reg;
       j["owner"] = o;
     }
+    j["provenance"] = Provenance(argc, argv);
     AtomicWriteFile(json_path, j.dump(2) + "\n");
   }
   return 0;
@@ -499,5 +512,4 @@ int RunDetect(int argc, char** argv) {
 WATERGS_COMMAND(detect,
                 "Detects a WATER-GS watermark in image files (screenshots, "
                 "frames, photos of a screen)",
-    j["provenance"] = Provenance(argc, argv);
                 watergs::RunDetect);

@@ -24,6 +24,7 @@
 #include "gaussian/util/text_util.h"
 #include "plugin/command.h"
 #include "plugin/embed_inputs.h"
+#include "plugin/model_alignment.h"
 #include "plugin/option_parser.h"
 #include "plugin/ownership_report.h"
 #include "plugin/report_evidence.h"
@@ -46,6 +47,7 @@ constexpr char kCandidateDistortions[] = "gn:0.01,dropout:0.1,crop:0.1";
 struct EmbedArgs {
   std::string input_path, output_path, decoder_path, message, report_path;
   std::string key_option;
+  std::string align = "auto";
   WorkspaceOptions workspace;
   // Defaults: the settings measured best on the demo at 2 cores
   // (docs/history.md, "The owner's reading"): whole frames, half the
@@ -187,7 +189,7 @@ void Validate(const EmbedArgs& a) {
 void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
                       Rasterizer& rasterizer, const GaussianModel& raw,
                       const GaussianModel& watermarked,
-                      const WorkspaceViews& views, BitDecoder& decoder,
+                      const TrainingViews& views, BitDecoder& decoder,
                       const Bits& message,
                       const std::array<float, 3>& background) {
   EvaluationOptions options;
@@ -296,7 +298,9 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("image_path", &a.workspace.image_path,
              "Image folder (default <workspace>/images)");
   parser.Add("downscale", &a.workspace.downscale, "Image downscale: 1,2,4,8");
-  parser.AddRequired("decoder", &a.decoder_path, "Decoder weights file");
+  parser.Add("align", &a.align, kAlignHelp);
+  a.decoder_path = ShippedDecoderPath();
+  parser.Add("decoder", &a.decoder_path, kDecoderHelp);
   parser.AddRequired("message", &a.message,
                      std::string("Message: ") + kMessageFormats);
   parser.Add("key", &a.key_option, kKeyHelp);
@@ -467,11 +471,19 @@ int RunEmbed(int argc, char** argv) {
   const std::string key = ResolveKey(a.key_option);
   EmbedInputs in = LoadEmbedInputs(a.input_path, a.decoder_path, a.message, key,
                                    a.workspace, parser.device(), a.eval);
-  PrintKeyNotice("embed", key);
   PlyData& ply = in.ply;
+  // Before anything else is said: a model of another scene is one line.
+  const PlacedViews placed = PlaceByOption(
+      "embed", a.align, *MakeRasterizer(parser.device()), ply.model,
+      a.input_path, *in.workspace, *in.views, options.background);
+  PrintKeyNotice("embed", key);
+  // The model's frame sets its units: the noise layer's sigma and the
+  // scene extent (Inria's position rates) are in scene units.
+  const double model_units = placed.placement.workspace_to_model.scale;
+  ScaleToModelUnits(placed.placement, &options.distortions);
   const BitDecoder* decoder = in.decoder.get();
   const Bits& message = in.message;
-  const WorkspaceViews& views = *in.views;
+  const TrainingViews& views = placed.views();
   const std::vector<size_t>& train_views = in.train_views;
   options.check_views = SpreadViews(train_views, a.check_views);
   // Between two training cameras, as extract --num_views samples them; a
@@ -479,7 +491,7 @@ int RunEmbed(int argc, char** argv) {
   options.check_free_views = SampleViewpointsBetween(
       views, train_views, std::max(a.check_free_views, 0),
       uint64_t(a.seed) + 7919);
-  const double extent = in.workspace->SceneExtent();
+  const double extent = in.workspace->SceneExtent() * model_units;
   const RenderCamera first = views.Camera(train_views.front());
   std::printf(
       "embed: %zu Gaussians, %zu views %dx%d, %d-bit message %s, "

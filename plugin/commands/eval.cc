@@ -16,6 +16,7 @@
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
 #include "plugin/command.h"
+#include "plugin/model_alignment.h"
 #include "plugin/option_parser.h"
 #include "plugin/ownership_report.h"
 #include "plugin/report_evidence.h"
@@ -110,7 +111,10 @@ int RunEval(int argc, char** argv) {
              "Image folder (default <workspace>/images)");
   parser.Add("downscale", &workspace_options.downscale,
              "Image downscale: 1,2,4,8");
-  parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  std::string align = "auto";
+  parser.Add("align", &align, kAlignHelp);
+  decoder_path = ShippedDecoderPath();
+  parser.Add("decoder", &decoder_path, kDecoderHelp);
   parser.AddRequired("message", &message,
                      std::string("Embedded message: ") + kMessageFormats);
   parser.Add("key", &key_option, kKeyHelp);
@@ -214,12 +218,18 @@ int RunEval(int argc, char** argv) {
                                 "): only the raw renders are compared";
     notices.push_back("eval: no ground truth: " + options.ground_truth_note);
   }
-  const WorkspaceViews views(workspace);
+  const WorkspaceViews workspace_views(workspace);
   const std::vector<size_t> eval_views =
       SelectViews(workspace, which_views, max_views);
   for (const std::string& notice : notices) std::cerr << notice << "\n";
 
   auto rasterizer = MakeRasterizer(parser.device());
+  // Both models in the raw model's frame: it is the one placed.
+  const PlacedViews placed =
+      PlaceByOption("eval", align, *rasterizer, raw.model, raw_path, workspace,
+                    workspace_views, options.background);
+  const TrainingViews& views = placed.views();
+  ScaleToModelUnits(placed.placement, &options.model_attacks);
   const EvaluationReport report =
       EvaluateWatermark(*rasterizer, raw.model, watermarked.model, views,
                         eval_views, *decoder, bits, options);

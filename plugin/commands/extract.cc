@@ -19,6 +19,7 @@
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
 #include "plugin/command.h"
+#include "plugin/model_alignment.h"
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
@@ -29,40 +30,6 @@
 
 namespace watergs {
 namespace {
-
-// "similarity:..." (or the bare numbers), or a file holding that line (the
-// <output>.transform.txt that `watergs attack` writes).
-// Errors name the option, or the file it named, not the attack parser's
-// --attack.
-SimilarityTransform ParseSceneTransform(const std::string& value) {
-  const std::string prefix = "similarity:";
-  std::string text = value;
-  std::string source = "--scene_transform";
-  if (std::filesystem::is_regular_file(value)) {
-    const std::vector<uint8_t> bytes = ReadFileBytes(value);
-    text.assign(bytes.begin(), bytes.end());
-    while (!text.empty() && std::isspace((unsigned char)text.back())) {
-      text.pop_back();
-    }
-    source = value;
-  } else if (text.rfind(prefix, 0) != 0 &&
-             text.find_first_not_of("0123456789+-.,eE ") != std::string::npos) {
-    // Neither numbers nor an existing file: a mistyped file name.
-    FailAt(value,
-           "--scene_transform file not found (give the "
-           ".transform.txt that watergs attack wrote, or "
-           "similarity:DEG,TX,TY,TZ,S[,AX,AY,AZ])");
-  }
-  if (text.rfind(prefix, 0) == 0) text = text.substr(prefix.size());
-  try {
-    return ParseSimilarity(text);
-  } catch (const Error& e) {
-    std::string message = e.what();
-    const std::string attack = "--attack: ";
-    if (message.rfind(attack, 0) == 0) message = message.substr(attack.size());
-    Fail(source + ": " + message);
-  }
-}
 
 // The verdict lines of one reading (`label`: "" or " (owner's reading)").
 void PrintVerdict(const ExtractionResult& r, const char* label,
@@ -114,7 +81,13 @@ int RunExtract(int argc, char** argv) {
              "Image folder (not read: extract renders the cameras only)");
   parser.Add("downscale", &workspace_options.downscale,
              "Image downscale: 1,2,4,8");
-  parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  std::string align = "auto";
+  parser.Add("align", &align,
+             std::string(kAlignHelp) +
+                 " (the raw model's frame with --raw_path; without it, "
+                 "--scene_transform replaces it)");
+  decoder_path = ShippedDecoderPath();
+  parser.Add("decoder", &decoder_path, kDecoderHelp);
   parser.Add("raw_path", &raw_path,
              "The unwatermarked model (the owner's): also read each bit from "
              "the difference of the suspect's logits and this model's at the "
@@ -180,7 +153,17 @@ int RunExtract(int argc, char** argv) {
   }
   workspace_options.images_optional = true;  // only the cameras are rendered
   const Workspace workspace = Workspace::Open(workspace_options);
-  const WorkspaceViews views(workspace);
+  const WorkspaceViews workspace_views(workspace);
+  // A suspect moved by a known transform is read through it, not searched.
+  if (!scene_transform.empty() && raw_path.empty()) align = "off";
+  const std::unique_ptr<Rasterizer> rasterizer =
+      MakeRasterizer(parser.device());
+  // With the owner's reading both models are in the raw model's frame.
+  const PlacedViews placed = PlaceByOption(
+      "extract", align, *rasterizer, raw_path.empty() ? ply.model : raw.model,
+      raw_path.empty() ? input_path : raw_path, workspace, workspace_views,
+      ParseBackground(background), /*suspect=*/raw_path.empty());
+  const TrainingViews& views = placed.views();
 
   std::vector<RenderCamera> cameras;
   std::vector<std::string> names;
@@ -202,7 +185,8 @@ int RunExtract(int argc, char** argv) {
   // cameras as they were.
   const std::vector<RenderCamera> raw_cameras = cameras;
   if (!scene_transform.empty()) {
-    const SimilarityTransform transform = ParseSceneTransform(scene_transform);
+    const SimilarityTransform transform =
+        ParseSceneTransform(scene_transform, "--scene_transform");
     for (RenderCamera& camera : cameras) {
       camera = TransformCamera(camera, transform);
     }
@@ -216,8 +200,6 @@ int RunExtract(int argc, char** argv) {
   }
   VerificationThresholds thresholds;
   thresholds.present_p = present_p;
-  const std::unique_ptr<Rasterizer> rasterizer =
-      MakeRasterizer(parser.device());
   const Bits* claim = expected.empty() ? nullptr : &expected;
   OwnerExtraction both;
   if (raw_path.empty()) {

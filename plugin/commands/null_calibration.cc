@@ -124,7 +124,8 @@ int RunNullCalibration(int argc, char** argv) {
       "against the message as a fixed claim, under single keys and under "
       "--keys keys, single views and aggregates of views; prints the "
       "empirical rate next to the binomial one at nominal 1e-2 .. 1e-6.");
-  parser.AddRequired("decoder", &decoder_path, "Decoder weights file");
+  decoder_path = ShippedDecoderPath();
+  parser.Add("decoder", &decoder_path, kDecoderHelp);
   parser.Add("logits", &logits_list,
              "extract/detect --json files of unmarked views, comma-separated");
   parser.Add("reading", &reading,

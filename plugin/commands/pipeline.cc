@@ -18,6 +18,7 @@
 #include "plugin/command.h"
 #include "plugin/option_parser.h"
 #include "plugin/report_evidence.h"
+#include "watermark/bit_decoder.h"
 
 namespace watergs {
 namespace {
@@ -51,8 +52,8 @@ void RunInProcess(const StageArgs& args) {
 }
 
 struct PipelineArgs {
-  std::string image_path, output_path, decoder, message, key, train_args,
-      embed_args;
+  std::string image_path, workspace_path, output_path, decoder, message, key,
+      train_args, embed_args;
   // "cpu" or "cuda" when --device was given (else each stage's default).
   std::string device;
   int downscale = 2, iterations = 7000, num_threads = 0;
@@ -61,13 +62,21 @@ struct PipelineArgs {
 // The three stages' arguments for `a`.
 std::vector<StageArgs> PipelineStages(const PipelineArgs& a,
                                       const fs::path& out) {
-  const std::string ws = (out / "workspace").string();
+  // An existing workspace is used as it is (no reconstruct stage).
+  const bool reconstruct = a.workspace_path.empty();
+  const std::string ws = reconstruct ? (out / "workspace").string()
+                                     : fs::absolute(a.workspace_path).string();
   const std::string threads = std::to_string(a.num_threads);
-  const StageArgs common = {"--workspace_path", ws,
-                            "--downscale",      std::to_string(a.downscale),
-                            "--num_threads",    threads};
+  StageArgs common = {"--workspace_path", ws,
+                      "--downscale",      std::to_string(a.downscale),
+                      "--num_threads",    threads};
+  if (!reconstruct && !a.image_path.empty()) {
+    common.insert(common.end(),
+                  {"--image_path", fs::absolute(a.image_path).string()});
+  }
   std::vector<StageArgs> stages = {
-      {"reconstruct", "--image_path", fs::absolute(a.image_path).string(),
+      {"reconstruct", "--image_path",
+       reconstruct ? fs::absolute(a.image_path).string() : "",
        "--workspace_path", ws, "--num_threads", threads},
       {"train", "--output_path", (out / "train").string(), "--eval",
        "--iterations", std::to_string(a.iterations), "--test_iterations",
@@ -90,6 +99,7 @@ std::vector<StageArgs> PipelineStages(const PipelineArgs& a,
       stages[k].push_back(w);
     }
   }
+  if (!reconstruct) stages.erase(stages.begin());
   return stages;
 }
 
@@ -103,8 +113,15 @@ int RunPipeline(int argc, char** argv) {
       "report. Writes OUT/workspace, OUT/train, OUT/watermarked.ply and "
       "OUT/report.html; a second run keeps the stages done and resumes the "
       "one that was stopped.");
-  parser.AddRequired("image_path", &a.image_path, "Folder of photos");
-  parser.AddRequired("decoder", &a.decoder, "Decoder weights file");
+  parser.Add("image_path", &a.image_path,
+             "Folder of photos (reconstructed with COLMAP first); with "
+             "--workspace_path, that workspace's image folder if not "
+             "<workspace>/images");
+  parser.Add("workspace_path", &a.workspace_path,
+             "An existing COLMAP workspace (sparse/0 and images/): the "
+             "reconstruct stage is skipped");
+  a.decoder = ShippedDecoderPath();
+  parser.Add("decoder", &a.decoder, kDecoderHelp);
   parser.AddRequired("message", &a.message, "The owner's message");
   parser.Add("key", &a.key, "The owner's key (see embed --key)");
   parser.AddRequired("output_path", &a.output_path, "Output folder");
@@ -118,8 +135,16 @@ int RunPipeline(int argc, char** argv) {
   if (!parser.Parse(argc, argv)) return 0;
   if (parser.Given("device")) a.device = DeviceName(parser.device());
   if (a.iterations < 1) Fail("pipeline: --iterations must be >= 1");
-  if (!fs::is_directory(a.image_path)) {
+  if (a.image_path.empty() && a.workspace_path.empty()) {
+    Fail(
+        "pipeline: give --image_path (a folder of photos) or "
+        "--workspace_path (an existing COLMAP workspace)");
+  }
+  if (!a.image_path.empty() && !fs::is_directory(a.image_path)) {
     FailAt(a.image_path, "not a folder of photos");
+  }
+  if (!a.workspace_path.empty() && !fs::is_directory(a.workspace_path)) {
+    FailAt(a.workspace_path, "not a COLMAP workspace folder");
   }
   if (!fs::is_regular_file(a.decoder)) FailAt(a.decoder, "no decoder file");
   const fs::path out = fs::absolute(a.output_path);

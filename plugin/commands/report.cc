@@ -18,6 +18,7 @@
 #include "gaussian/util/file_util.h"
 #include "gaussian/util/text_util.h"
 #include "plugin/command.h"
+#include "plugin/model_alignment.h"
 #include "plugin/option_parser.h"
 #include "plugin/ownership_report.h"
 #include "plugin/report_evidence.h"
@@ -63,7 +64,10 @@ int RunReport(int argc, char** argv) {
              "Image folder (default <workspace>/images)");
   parser.Add("downscale", &request.workspace.downscale,
              "Image downscale: 1,2,4,8");
-  parser.AddRequired("decoder", &request.decoder_path, "Decoder weights file");
+  std::string align = "auto";
+  parser.Add("align", &align, kAlignHelp);
+  request.decoder_path = ShippedDecoderPath();
+  parser.Add("decoder", &request.decoder_path, kDecoderHelp);
   parser.AddRequired("message", &request.message_text,
                      std::string("Claimed message: ") + kMessageFormats);
   parser.Add("key", &request.key_option, kKeyHelp);
@@ -163,7 +167,14 @@ int RunReport(int argc, char** argv) {
                                 workspace.options().image_path +
                                 "): only the raw renders are compared";
   }
-  const WorkspaceViews views(workspace);
+  const WorkspaceViews workspace_views(workspace);
+  auto rasterizer = MakeRasterizer(parser.device());
+  // Every model in the raw model's frame: it is the one placed.
+  const PlacedViews placed =
+      PlaceByOption("report", align, *rasterizer, raw.model, request.raw_path,
+                    workspace, workspace_views, options.background);
+  const TrainingViews& views = placed.views();
+  ScaleToModelUnits(placed.placement, &options.model_attacks);
   const size_t n = views.NumViews();
   const size_t count =
       max_views > 0 ? std::min<size_t>(size_t(max_views), n) : n;
@@ -173,7 +184,6 @@ int RunReport(int argc, char** argv) {
   request.generator = VersionLine();
   request.commands.push_back(
       {"This report (every figure in it)", CommandLine(argc, argv)});
-  auto rasterizer = MakeRasterizer(parser.device());
   EvaluationReport evaluation =
       EvaluateWatermark(*rasterizer, raw.model, watermarked.model, views,
                         eval_views, *decoder, bits, options);
