@@ -294,6 +294,12 @@ DecoderBalance MeasureBalance(BitDecoder& decoder,
   }
   balance.ones_fraction = double(ones) / double(images.size() * bits);
   for (int b = 0; b < bits; ++b) {
+    const double mean = logits.col(b).mean();
+    balance.bit_mean.push_back(mean);
+    balance.bit_std.push_back(std::sqrt(
+        (logits.col(b).array() - mean).square().sum() / double(images.size())));
+  }
+  for (int b = 0; b < bits; ++b) {
     const double f = (logits.col(b).array() > 0).cast<double>().mean();
     balance.max_bit_ones = std::max(balance.max_bit_ones, f);
     balance.min_bit_ones = std::min(balance.min_bit_ones, f);

@@ -80,6 +80,10 @@ struct DecoderBalance {
   int min_bit_errors = 0;
   // The bits each image reads (logit > 0 -> 1), in the images' order.
   std::vector<Bits> image_bits;
+  // The lean: per bit, the mean of the logits over the images and their
+  // standard deviation (what a blind embedding must overcome at every view,
+  // and how much it moves from one view to the next).
+  std::vector<double> bit_mean, bit_std;
 };
 DecoderBalance MeasureBalance(BitDecoder& decoder,
                               const std::vector<ImageRGB>& images,

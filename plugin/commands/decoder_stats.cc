@@ -2,6 +2,8 @@
 // renders of an unmarked model): fraction of 1-bits, correlation between
 // bits, and how many images would pass the verdict for a claimed message,
 // the false positives an owner's p-value assumes away.
+#include <algorithm>
+#include <cmath>
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -84,6 +86,16 @@ int RunDecoderStats(int argc, char** argv) {
             << watergs::MaxErrorsForPresence(bits, present_p) << " of " << bits
             << " bits wrong): " << b.false_positives
             << "; fewest bit errors seen " << b.min_bit_errors << "\n";
+  // The lean (issue 52): what the images read per bit without a watermark.
+  double abs_mean = 0, largest = 0, spread = 0;
+  for (int k = 0; k < bits; ++k) {
+    abs_mean += std::abs(b.bit_mean[k]) / bits;
+    largest = std::max(largest, std::abs(b.bit_mean[k]));
+    spread += b.bit_std[k] / bits;
+  }
+  std::cout << std::setprecision(2) << "decoder_stats: lean: mean logit per "
+            << "bit |mean| " << abs_mean << " (largest " << largest
+            << "), spread from image to image " << spread << "\n";
   if (!json_path.empty()) {
     std::ostringstream json;
     json << std::setprecision(6) << "{\"images\": " << b.images
@@ -92,7 +104,9 @@ int RunDecoderStats(int argc, char** argv) {
          << ", \"max_bit_ones\": " << b.max_bit_ones
          << ", \"mean_abs_correlation\": " << b.mean_abs_correlation
          << ", \"false_positives\": " << b.false_positives
-         << ", \"min_bit_errors\": " << b.min_bit_errors;
+         << ", \"min_bit_errors\": " << b.min_bit_errors
+         << ", \"bit_mean\": " << nlohmann::json(b.bit_mean).dump()
+         << ", \"bit_std\": " << nlohmann::json(b.bit_std).dump();
     if (crop == 0) {
       // Whole images: what each file reads, by path.
       nlohmann::json per_image = nlohmann::json::array();

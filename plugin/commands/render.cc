@@ -16,6 +16,7 @@
 #include "gaussian/util/progress.h"
 #include "plugin/command.h"
 #include "plugin/image_file.h"
+#include "plugin/model_alignment.h"
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
@@ -29,7 +30,7 @@ using namespace watergs;
 // Free viewpoints between the cameras (as extract --num_views samples them),
 // each attacked in turn by `attacks` and written as free_NNN.png or, with a
 // JPEG quality, .jpg: the copies a leak would hold.
-void RenderFreeViews(const GaussianModel& model, const WorkspaceViews& views,
+void RenderFreeViews(const GaussianModel& model, const TrainingViews& views,
                      int num_views, uint64_t seed,
                      const std::vector<ImageAttackSpec>& attacks,
                      int jpeg_quality, const RenderOptions& options,
@@ -103,6 +104,8 @@ int RunRender(int argc, char** argv) {
   parser.Add("jpeg_quality", &jpeg_quality,
              "With --num_views: write JPEG files of this quality (1-100; 0 = "
              "PNG)");
+  std::string align = "auto";
+  parser.Add("align", &align, kAlignHelp);
   if (!parser.Parse(argc, argv)) return 0;
   if (num_views < 0) Fail("--num_views must be >= 0");
   if (jpeg_quality < 0 || jpeg_quality > 100) {
@@ -125,10 +128,14 @@ int RunRender(int argc, char** argv) {
   ws.images_optional = true;  // renders need only the cameras
   const Workspace workspace = Workspace::Open(ws);
   const bool truth = workspace.has_images();
-  const WorkspaceViews views(workspace);
+  const WorkspaceViews workspace_views(workspace);
+  auto rasterizer = MakeRasterizer(parser.device());
+  const PlacedViews placed =
+      PlaceByOption("render", align, *rasterizer, ply.model, input_path,
+                    workspace, workspace_views, bg, /*suspect=*/true);
+  const TrainingViews& views = placed.views();
   if (num_views > 0) {
     CreateDirectories(output_path);
-    auto rasterizer = MakeRasterizer(parser.device());
     RenderOptions options;
     options.background = bg;
     options.active_sh_degree = sh_degree;
@@ -148,7 +155,6 @@ int RunRender(int argc, char** argv) {
                 workspace.options().image_path.c_str());
   }
 
-  auto rasterizer = MakeRasterizer(parser.device());
   RenderOptions options;
   options.background = bg;
   options.active_sh_degree = sh_degree;

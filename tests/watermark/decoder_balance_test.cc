@@ -80,6 +80,15 @@ TEST(MeasureBalanceTest, ExactFiguresOfKnownLogits) {
   EXPECT_EQ(MeasureBalance(decoder, images, claimed, 0.7).false_positives, 3);
   // Against 0001: 4, 2, 4 and 1 errors.
   EXPECT_EQ(MeasureBalance(decoder, images, {0, 0, 0, 1}).min_bit_errors, 1);
+  // The lean: means 0, 0, 0, -1; population deviations 1, 2, sqrt(3), 0.
+  ASSERT_EQ(b.bit_mean.size(), 4u);
+  EXPECT_DOUBLE_EQ(b.bit_mean[0], 0);
+  EXPECT_DOUBLE_EQ(b.bit_mean[2], 0);
+  EXPECT_DOUBLE_EQ(b.bit_mean[3], -1);
+  EXPECT_DOUBLE_EQ(b.bit_std[0], 1);
+  EXPECT_DOUBLE_EQ(b.bit_std[1], 2);
+  EXPECT_NEAR(b.bit_std[2], std::sqrt(3.0), 1e-12);
+  EXPECT_DOUBLE_EQ(b.bit_std[3], 0);
 }
 
 // 48 bits at the verdict's 1e-6: an image reading the claim exactly counts
