@@ -13,7 +13,8 @@ namespace {
 
 constexpr int kParameters = 9;
 
-// H x W x 3 floats, blurred by `sigma` pixels (none at 0).
+}  // namespace
+
 std::vector<float> Blurred(const ImageRGB& image, double sigma) {
   cv::Mat rgb(image.height, image.width, CV_32FC3,
               const_cast<float*>(image.data.data()));
@@ -26,6 +27,8 @@ std::vector<float> Blurred(const ImageRGB& image, double sigma) {
   const float* p = out.ptr<float>(0);
   return std::vector<float>(p, p + image.data.size());
 }
+
+namespace {
 
 double Rms(const std::vector<double>& r) {
   double sum = 0;

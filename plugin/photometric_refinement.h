@@ -70,6 +70,10 @@ PhotometricResult RefinePhotometrically(const ImageRGB& image,
 RenderCamera MoveCamera(const RenderCamera& camera, double depth,
                         const double* delta);
 
+// H x W x 3 floats of `image`, blurred by `sigma` pixels (none at 0): what
+// the photometric fits compare.
+std::vector<float> Blurred(const ImageRGB& image, double sigma);
+
 // Largest distance (pixels) between where `a` and `b` put the points at
 // `depth` behind the image's corners and centre, as seen by `a`.
 double CameraMotionPx(const RenderCamera& a, const RenderCamera& b,
