@@ -4,8 +4,14 @@
 # product), attack the file, then read it back as the owner does (extract --raw_path: each view's
 # logits minus the raw model's, the reading the default embedding optimises). Asserts per single
 # view, not only in aggregate:
-#  - the raw model reads "absent" over all cameras, blind and as the owner (the control);
+#  - the raw model reads "absent" over all cameras blind, and a second raw model trained alone (another
+#    seed: an unmarked model of the same scene, what an honest third party could hold) reads "absent"
+#    as the owner's suspect against the first (the control; the raw model against a copy of itself
+#    would read "absent" by the tie rule alone);
 #  - the watermarked file and its gn / dropout / crop copies read "present" over all cameras;
+#  - the watermarked file read blind over all cameras (the decoder alone; the default embedding
+#    optimises the owner's reading, and the blind one only follows): one view reads at most
+#    MAX_BLIND_VIEW_BER of the bits wrong on average, and the raw model at least MIN_RAW_VIEW_BER;
 #  - the 6 held-out cameras (unseen in training and embedding) read "present" together, and one
 #    held-out view alone reads at most MAX_MEAN_ERRORS of 48 bits wrong on average, at most
 #    MAX_P90_ERRORS at the 90th percentile;
@@ -22,6 +28,12 @@ message="text:WGS-26"
 MAX_MEAN_ERRORS="${MAX_MEAN_ERRORS:-3}"  # of 48, mean over the 6 held-out views as the owner (measured 1.50)
 MAX_P90_ERRORS="${MAX_P90_ERRORS:-4}"    # measured 2
 MIN_PSNR_VS_RAW="${MIN_PSNR_VS_RAW:-36}"  # dB, held-out views (measured 38.03)
+# Blind single views over all cameras, the fraction of bits wrong on average: the watermark shows
+# through the decoder alone (measured 0.344 here; the demo at 240x180 reads 0.34 over its 48
+# cameras, 0.35-0.40 over the held-out ones in results/owner_reading; chance is 0.5), and the raw
+# model reads near chance (measured 0.477).
+MAX_BLIND_VIEW_BER="${MAX_BLIND_VIEW_BER:-0.45}"
+MIN_RAW_VIEW_BER="${MIN_RAW_VIEW_BER:-0.40}"
 # Extra embed options, to see the test fail on a weaker embedding (e.g. --margin 0).
 read -r -a extra <<< "${EMBED_EXTRA_ARGS:-}"
 out="$(mktemp -d)"
@@ -30,9 +42,15 @@ trap 'rm -rf "$out"' EXIT
 common=(--workspace_path "$scene" --downscale 4 --device cpu)
 fail() { echo "reduced_demo_test: FAIL: $*" >&2; exit 1; }
 
-"$bin" train "${common[@]}" --output_path "$out/train" --iterations 2000 \
-  --densify_until_iter 1000 --eval --test_iterations 2000 --num_threads 1 > "$out/train.log"
+# The second raw model trains on the other core meanwhile.
+train_args=(--iterations 2000 --densify_until_iter 1000 --eval --test_iterations 2000 --num_threads 1)
+"$bin" train "${common[@]}" --output_path "$out/train2" "${train_args[@]}" --seed 1 > "$out/train2.log" 2>&1 &
+train2=$!
+"$bin" train "${common[@]}" --output_path "$out/train" "${train_args[@]}" > "$out/train.log"
 raw="$out/train/point_cloud.ply"
+wait "$train2" || { cat "$out/train2.log"; fail "training the second raw model"; }
+raw2="$out/train2/point_cloud.ply"
+cmp -s "$raw" "$raw2" && fail "the raw model with --seed 1 is the seed-0 file"
 "$bin" embed --input_path "$raw" "${common[@]}" --decoder "$decoder" --message "$message" \
   --output_path "$out/wm.ply" --eval --num_threads 1 "${extra[@]}" > "$out/embed.log" 2>&1 || { cat "$out/embed.log"; fail "embed"; }
 count() { "$bin" ply_info --input_path "$1" | awk '/^Gaussians:/ {print $2}'; }
@@ -45,10 +63,15 @@ extract() {  # NAME PLY [extract options...]: writes $out/NAME.json, prints the 
   python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j.get("owner", j)["verdict"])' "$out/$name.json"
 }
 [ "$(extract raw "$raw")" = "watermark absent" ] || fail "raw model not 'absent' blind: $(cat "$out/raw.txt")"
-# As the owner, against a copy of itself (the same Gaussians in another file): every difference a tie.
-cp "$raw" "$out/raw_copy.ply"
-[ "$(extract raw_owner "$raw" --raw_path "$out/raw_copy.ply")" = "watermark absent" ] ||
-  fail "raw model not 'absent' as the owner: $(cat "$out/raw_owner.txt")"
+# As the owner: an unmarked model trained alone, read against the owner's raw model.
+[ "$(extract raw_owner "$raw2" --raw_path "$raw")" = "watermark absent" ] ||
+  fail "a raw model trained alone not 'absent' as the owner: $(cat "$out/raw_owner.txt")"
+python3 - "$out/raw_owner.json" <<'PY'
+import json, sys
+j = json.load(open(sys.argv[1]))["owner"]
+print(f"raw model trained alone (--seed 1), the owner's suspect: BER {j['ber']:.2%}, {j['verdict']}, "
+      f"one view mean {j['view_ber']['mean']:.2%}")
+PY
 for attack in identity gn:0.01 dropout:0.1 crop:0.1; do
   ply="$out/wm.ply"
   if [ "$attack" != identity ]; then
@@ -58,6 +81,17 @@ for attack in identity gn:0.01 dropout:0.1 crop:0.1; do
   v=$(extract "wm_${attack%%:*}" "$ply" --raw_path "$raw")
   [ "$v" = "watermark present" ] || fail "$attack: '$v' over all cameras"
 done
+python3 - "$out/wm_identity.json" "$MAX_BLIND_VIEW_BER" "$out/raw.json" "$MIN_RAW_VIEW_BER" <<'PY'
+import json, sys
+wm, raw = json.load(open(sys.argv[1])), json.load(open(sys.argv[3]))
+for name, j in (("watermarked", wm), ("raw", raw)):
+    print(f"{name} read blind over {j['num_views']} cameras: BER {j['ber']:.2%}, {j['verdict']}, "
+          f"one view mean {j['view_ber']['mean']:.2%}")
+assert wm["view_ber"]["mean"] <= float(sys.argv[2]), \
+    f"watermarked, blind: one view mean {wm['view_ber']['mean']:.4f} > {sys.argv[2]}"
+assert raw["view_ber"]["mean"] >= float(sys.argv[4]), \
+    f"raw, blind: one view mean {raw['view_ber']['mean']:.4f} < {sys.argv[4]}"
+PY
 v=$(extract held "$out/wm.ply" --split test --raw_path "$raw")
 [ "$v" = "watermark present" ] || fail "held-out views together: '$v'"
 "$bin" eval --raw_path "$raw" --input_path "$out/wm.ply" "${common[@]}" --decoder "$decoder" \
