@@ -191,9 +191,11 @@ void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
                       const GaussianModel& watermarked,
                       const TrainingViews& views, BitDecoder& decoder,
                       const Bits& message,
-                      const std::array<float, 3>& background) {
+                      const std::array<float, 3>& background,
+                      const ModelPlacement& placement) {
   EvaluationOptions options;
   options.background = background;
+  ScaleToModelUnits(placement, &options.model_attacks);
   options.show_progress = true;
   options.lpips_note = "not computed (embed --report)";
   options.ground_truth = true;
@@ -225,6 +227,7 @@ void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
     report_command += " --downscale " + std::to_string(a.workspace.downscale);
   }
   if (a.reading == "blind") report_command += " --reading blind";
+  if (a.align != "auto") report_command += " --align " + ShellQuote(a.align);
   report_command += " --decoder " + ShellQuote(a.decoder_path) +
                     ClaimOptions(a.message, a.key_option) + " --output_path " +
                     ShellQuote(a.report_path);
@@ -577,7 +580,7 @@ int RunEmbed(int argc, char** argv) {
   if (!a.report_path.empty()) {
     WriteEmbedReport(a, argc, argv, embedder.rasterizer(), raw,
                      embedder.model(), views, *in.decoder, message,
-                     options.background);
+                     options.background, placed.placement);
   }
   return 0;
 }

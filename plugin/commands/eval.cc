@@ -221,7 +221,6 @@ int RunEval(int argc, char** argv) {
   const WorkspaceViews workspace_views(workspace);
   const std::vector<size_t> eval_views =
       SelectViews(workspace, which_views, max_views);
-  for (const std::string& notice : notices) std::cerr << notice << "\n";
 
   auto rasterizer = MakeRasterizer(parser.device());
   // Both models in the raw model's frame: it is the one placed.
@@ -230,6 +229,7 @@ int RunEval(int argc, char** argv) {
                     workspace_views, options.background);
   const TrainingViews& views = placed.views();
   ScaleToModelUnits(placed.placement, &options.model_attacks);
+  for (const std::string& notice : notices) std::cerr << notice << "\n";
   const EvaluationReport report =
       EvaluateWatermark(*rasterizer, raw.model, watermarked.model, views,
                         eval_views, *decoder, bits, options);

@@ -77,8 +77,9 @@ int RunExtract(int argc, char** argv) {
                      "COLMAP workspace whose cameras are rendered");
   parser.Add("sparse_path", &workspace_options.input_path,
              "Sparse model folder (default <workspace>/sparse/0)");
-  parser.Add("image_path", &workspace_options.image_path,
-             "Image folder (not read: extract renders the cameras only)");
+  parser.Add(
+      "image_path", &workspace_options.image_path,
+      "Image folder (optional: a few photos check the model's frame, --align)");
   parser.Add("downscale", &workspace_options.downscale,
              "Image downscale: 1,2,4,8");
   std::string align = "auto";
@@ -151,11 +152,13 @@ int RunExtract(int argc, char** argv) {
   if (!message.empty()) {
     expected = ApplyKey(ParseMessage(message, decoder->NumBits()), key);
   }
-  workspace_options.images_optional = true;  // only the cameras are rendered
+  workspace_options.images_optional = true;  // photos only check the frame
   const Workspace workspace = Workspace::Open(workspace_options);
   const WorkspaceViews workspace_views(workspace);
   // A suspect moved by a known transform is read through it, not searched.
-  if (!scene_transform.empty() && raw_path.empty()) align = "off";
+  if (!scene_transform.empty() && raw_path.empty() && align == "auto") {
+    align = "off";
+  }
   const std::unique_ptr<Rasterizer> rasterizer =
       MakeRasterizer(parser.device());
   // With the owner's reading both models are in the raw model's frame.
