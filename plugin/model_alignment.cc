@@ -155,21 +155,42 @@ Pairs NearestPairs(const Matrix3Xd& queries, const Matrix3Xd& cloud) {
   return pairs;
 }
 
+// One round of ICP: the source moved by `transform`, its nearest pairs in
+// both directions, and their median distance as a fraction of `spread`.
+struct IcpRound {
+  Matrix3Xd moved;
+  Pairs forward, backward;
+  double residual = 0;
+};
+
+IcpRound MatchBothWays(const SimilarityTransform& transform,
+                       const Matrix3Xd& source, const Matrix3Xd& target,
+                       double spread) {
+  IcpRound round;
+  round.moved.resize(3, source.cols());
+  for (Eigen::Index k = 0; k < source.cols(); ++k) {
+    round.moved.col(k) = Apply(transform, source.col(k));
+  }
+  round.forward = NearestPairs(round.moved, target);
+  round.backward = NearestPairs(target, round.moved);
+  std::vector<double> all = round.forward.distance;
+  all.insert(all.end(), round.backward.distance.begin(),
+             round.backward.distance.end());
+  round.residual = Quantile(all, 0.5) / spread;
+  return round;
+}
+
 // Trimmed symmetric ICP with scale from `start`.
 CloudAlignment RefineIcp(const Matrix3Xd& source, const Matrix3Xd& target,
                          double target_spread, SimilarityTransform start,
                          int iterations) {
   CloudAlignment result{start, 0};
   for (int it = 0; it <= iterations; ++it) {
-    Matrix3Xd moved(3, source.cols());
-    for (Eigen::Index k = 0; k < source.cols(); ++k) {
-      moved.col(k) = Apply(result.transform, source.col(k));
-    }
-    const Pairs forward = NearestPairs(moved, target);
-    const Pairs backward = NearestPairs(target, moved);
-    std::vector<double> all = forward.distance;
-    all.insert(all.end(), backward.distance.begin(), backward.distance.end());
-    result.residual = Quantile(all, 0.5) / target_spread;
+    const IcpRound round =
+        MatchBothWays(result.transform, source, target, target_spread);
+    const Pairs& forward = round.forward;
+    const Pairs& backward = round.backward;
+    result.residual = round.residual;
     if (it == iterations) break;
     const size_t n = forward.query.size() + backward.query.size();
     Matrix3Xd from(3, n), to(3, n);
@@ -289,16 +310,13 @@ CloudAlignment RefinePointToPlane(const Matrix3Xd& source,
   const Matrix3Xd source_normals = Normals(source);
   const Matrix3Xd target_normals = Normals(target);
   CloudAlignment result = start;
-  Matrix3Xd moved(3, source.cols());
   for (int it = 0; it <= iterations; ++it) {
-    for (Eigen::Index k = 0; k < source.cols(); ++k) {
-      moved.col(k) = Apply(result.transform, source.col(k));
-    }
-    const Pairs forward = NearestPairs(moved, target);
-    const Pairs backward = NearestPairs(target, moved);
-    std::vector<double> all = forward.distance;
-    all.insert(all.end(), backward.distance.begin(), backward.distance.end());
-    result.residual = Quantile(all, 0.5) / spread;
+    const IcpRound round =
+        MatchBothWays(result.transform, source, target, spread);
+    const Pairs& forward = round.forward;
+    const Pairs& backward = round.backward;
+    const Matrix3Xd& moved = round.moved;
+    result.residual = round.residual;
     if (it == iterations) break;
     const SimilarityTransform step =
         PointToPlaneStep(moved, result.transform.rotation * source_normals,
