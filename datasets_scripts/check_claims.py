@@ -12,6 +12,10 @@ JSON reports of baseline runs (`--baseline "HiDDeN + 3DGS=PATH"`; `watergs extra
 
 The rules are fixed here, before any run is seen, so that a table cannot be tuned to pass. Python
 standard library only; claims.md is written atomically.
+
+With --readme README.md [--root DIR] it checks instead that every figure the README claims matches
+the committed file under results/ named beside it (the manifest: readme_claims.py), one line on
+stderr per mismatch naming the figure and the file, exit status 1 if any.
 """
 import argparse
 import csv
@@ -20,6 +24,10 @@ import math
 import os
 import statistics
 import sys
+
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import readme_claims  # noqa: E402
 
 # A claim "holds" under these rules (percentage points of BER).
 EMBEDS_MAX_P = 1e-3  # WATER-GS embeds: pooled identity bit errors, one-sided binomial p below this
@@ -197,14 +205,37 @@ def write_atomic(path, text):
     os.replace(tmp, path)
 
 
+def check_readme(readme, root):
+    try:
+        with open(readme, encoding="utf-8") as f:
+            text = f.read()
+    except OSError as e:
+        fail(f"{readme}: {e.strerror}")
+    root = root if root is not None else os.path.dirname(os.path.abspath(readme))
+    problems = readme_claims.check(text, root)
+    for problem in problems:
+        print(f"check_claims.py: {problem}", file=sys.stderr)
+    if problems:
+        sys.exit(1)
+    print(f"check_claims.py: {len(readme_claims.CLAIMS)} README claims match the files under results/ named beside them")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--results", required=True, help="results.csv written by reproduce_tables.sh")
-    parser.add_argument("--output", required=True, help="claims.md to write")
+    parser.add_argument("--results", help="results.csv written by reproduce_tables.sh")
+    parser.add_argument("--output", help="claims.md to write")
+    parser.add_argument("--readme", help="check this README's figures against their files instead")
+    parser.add_argument("--root", help="the folder the README's results/ paths are relative to "
+                        "(default: the README's folder)")
     parser.add_argument("--main_length", type=int, default=48)
     parser.add_argument("--baseline", action="append", default=[], metavar="NAME=JSON",
                         help="a baseline's extract or eval JSON (repeatable)")
     args = parser.parse_args()
+    if args.readme:
+        check_readme(args.readme, args.root)
+        return
+    if not args.results or not args.output:
+        parser.error("--results and --output are required (or --readme)")
     baselines = []
     for item in args.baseline:
         name, sep, path = item.partition("=")

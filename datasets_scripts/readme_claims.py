@@ -1,0 +1,474 @@
+"""The README's figures, each traced to the committed file under results/ that backs it.
+
+One manifest, CLAIMS below: each entry is a README phrase with a `{}` where a measured figure
+stands, the files it comes from, how each figure is read from them, and (optionally) a tolerance.
+`check(readme_text, root)` reads every phrase in the README, reads the figures from the files and
+returns one line per mismatch: a figure unlike its file (beyond the README's rounding: half a unit
+of the last digit it prints, unless the entry says otherwise), a phrase no longer in the README, a
+file that is gone, or a file not named beside its figure (in the same table row, or in the same
+paragraph or the one before it). check_claims.py --readme runs it. Python standard library only.
+
+Adding a figure to the README: add an entry here naming its file; the figure then cannot drift
+from the file, nor the file from the README, without this check saying so.
+"""
+import json
+import os
+import re
+import statistics
+
+NUMBER = r"(-?\d[\d,]*(?:\.\d+)?)"
+
+
+# ---- Sources: each returns (files it read, list of figures). -----------------------------------
+
+class Source:
+    def __init__(self, files, read):
+        self.files = files
+        self.read = read  # root -> list of floats
+
+    def values(self, root):
+        return self.read(root)
+
+
+def _text(root, path):
+    full = os.path.join(root, path)
+    try:
+        with open(full, encoding="utf-8") as f:
+            return f.read()
+    except OSError as e:
+        raise LookupError(f"{path}: {e.strerror}") from None
+
+
+def _numbers(text):
+    return [float(n.replace(",", "")) for n in re.findall(NUMBER, text)]
+
+
+def grep(path, pattern, flags=re.M):
+    """The numbers of every group of the first match of pattern in the file."""
+    def read(root):
+        m = re.search(pattern, _text(root, path), flags)
+        if not m:
+            raise LookupError(f"{path}: no line matches /{pattern}/")
+        return [float(g.replace(",", "")) for g in m.groups()]
+    return Source([path], read)
+
+
+def grep_all(path, pattern, flags=re.M):
+    """Group 1 of every match of pattern in the file, in order."""
+    def read(root):
+        found = [float(g.replace(",", "")) for g in re.findall(pattern, _text(root, path), flags)]
+        if not found:
+            raise LookupError(f"{path}: no line matches /{pattern}/")
+        return found
+    return Source([path], read)
+
+
+def cell(path, keys, column, index=0):
+    """The index-th number in a Markdown table cell: the row whose first cells are keys, the column
+    whose header starts with column (the header row of the table that row is in)."""
+    keys = (keys,) if isinstance(keys, str) else tuple(keys)
+
+    def read(root):
+        header = None
+        for line in _text(root, path).splitlines():
+            if not line.startswith("|"):
+                header = None
+                continue
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if header is None:
+                header = cells
+                continue
+            columns = [i for i, h in enumerate(header) if h.strip("*").startswith(column)]
+            if tuple(cells[:len(keys)]) != keys or not columns:
+                continue
+            found = _numbers(cells[columns[0]])
+            if len(found) <= index:
+                raise LookupError(f"{path}: row {' | '.join(keys)}, column '{column}' has no number {index + 1}")
+            return [found[index]]
+        raise LookupError(f"{path}: no table row {' | '.join(keys)} with a column '{column}'")
+    return Source([path], read)
+
+
+def json_at(path, *keys):
+    """A number in a JSON file, by keys and list indices."""
+    def read(root):
+        try:
+            value = json.loads(_text(root, path))
+            for k in keys:
+                value = value[k]
+        except (ValueError, KeyError, IndexError, TypeError):
+            raise LookupError(f"{path}: no value at {'/'.join(map(str, keys))}") from None
+        return [float(v) for v in value] if isinstance(value, list) else [float(value)]
+    return Source([path], read)
+
+
+def combine(function, *sources):
+    """function(all the sources' figures, in order) -> one figure or a list of them."""
+    def read(root):
+        values = [v for s in sources for v in s.values(root)]
+        result = function(values)
+        return list(result) if isinstance(result, (list, tuple)) else [result]
+    return Source([f for s in sources for f in s.files], read)
+
+
+def lowest(*sources):
+    return combine(min, *sources)
+
+
+def highest(*sources):
+    return combine(max, *sources)
+
+
+def span(*sources):
+    """Two figures: the lowest and the highest."""
+    return combine(lambda v: (min(v), max(v)), *sources)
+
+
+def mean(*sources):
+    return combine(statistics.mean, *sources)
+
+
+def difference(a, b):
+    """a - b."""
+    return combine(lambda v: v[0] - v[1], a, b)
+
+
+def scaled(factor, source):
+    return combine(lambda v: [x * factor for x in v], source)
+
+
+def count(path, pattern):
+    """How many lines of the file match pattern."""
+    def read(root):
+        return [float(len(re.findall(pattern, _text(root, path), re.M)))]
+    return Source([path], read)
+
+
+class Claim:
+    def __init__(self, phrase, *sources, tol=None, name=None):
+        self.phrase = phrase  # README text, `{}` where a figure stands
+        self.sources = sources
+        self.tol = tol
+        self.name = name
+
+    def pattern(self):
+        parts = self.phrase.split("{}")
+        return re.compile(NUMBER.join(re.escape(p).replace("\\ ", r"\s+") for p in parts))
+
+    def files(self):
+        return list(dict.fromkeys(f for s in self.sources for f in s.files))
+
+
+class Lines:
+    """A README fenced block whose every line must be a line of the file (after `normalize`)."""
+
+    def __init__(self, first_line, path, normalize=lambda line: line):
+        self.first_line = first_line
+        self.path = path
+        self.normalize = normalize
+        self.name = None
+
+    def files(self):
+        return [self.path]
+
+
+# ---- The manifest. -----------------------------------------------------------------------------
+
+FERN = "results/real_llff/fern/tables.md"
+FERN2 = "results/real_llff/fern_252x189/tables.md"
+HORNS = "results/real_llff/horns_252x189/tables.md"
+DRAWS = "results/real_llff/horns_252x189_draws/tables.md"
+DEMO_DRAWS = "results/demo_draws/tables.md"
+DEMO = "results/demo/run_demo.log"
+OWNER = "results/owner_reading/results.txt"
+OPENSPLAT = "results/third_party/opensplat_demo/summary.txt"
+GPU = "results/gpu/h200-2026-11-26/demo.txt"
+FAST = "results/testing/fast_tier.txt"
+DETECT = "results/owner_reading/detect_probe.txt"
+NULL = "results/owner_reading/owner_null.md"
+
+RAW_PSNR = "PSNR vs photos"
+FROM_RAW = "PSNR vs raw renders"
+
+
+def seeds(path, column, runs=("owner_seed0", "owner_seed1", "owner_seed2"), reading="owner", index=0):
+    return [cell(path, (run, reading), column, index) for run in runs]
+
+
+def probe(label, field):
+    """A number of one line of single_view_probe.sh's results.txt: the label's line, the figure
+    after field (e.g. 'owner held ', 'free48 ', 'vs raw ')."""
+    return grep(OWNER, r"^" + re.escape(label) + r"\s.*?" + re.escape(field) + r"\s*" + NUMBER)
+
+
+def demo_line(row, field):
+    """A figure of the demo summary's row (`wm (6 held-out)`, ...): the number after field."""
+    return grep(DEMO, r"^" + re.escape(row) + r"\s.*?" + re.escape(field) + r"\s*" + NUMBER)
+
+
+AUTO = ("owner_seed0_autor", "owner_seed1_autor", "owner_seed2_autor")
+
+def diffs(path, runs, reading="owner"):
+    """watermarked - raw PSNR against the photos, one figure per run (negative: a loss)."""
+    return [difference(cell(path, (r, reading), RAW_PSNR, 1), cell(path, (r, reading), RAW_PSNR, 0))
+            for r in runs]
+
+
+def losses(path, runs, reading="owner"):
+    """raw - watermarked PSNR against the photos, one figure per run (positive: a loss)."""
+    return [scaled(-1, d) for d in diffs(path, runs, reading)]
+
+
+SEEDS = ("owner_seed0", "owner_seed1", "owner_seed2")
+AUTO = ("owner_seed0_autor", "owner_seed1_autor", "owner_seed2_autor")
+ATTACKS = ("identity", "gn:0.01", "dropout:0.1", "crop:0.1")
+
+
+def table1(path, runs, attacks=ATTACKS, index=0, reading="owner"):
+    """Table 1 cells (index 0: the per-image BER of one draw; 4: the mean over draws, 5: the
+    largest draw, 6: the most aggregated bits wrong, 8: draws read 'present')."""
+    return [cell(path, (r, reading), a, index) for r in runs for a in attacks]
+
+
+def single_views(path, runs, column, index=0, reading="owner"):
+    return [cell(path, (r, reading), column, index) for r in runs]
+
+
+CLAIMS = [
+    # -- the introduction --
+    Claim("reads about {}% of the bits on its own",
+          combine(lambda v: 100 - v[0], cell(DEMO_DRAWS, ("owner_seed0", "owner"), "held-out mean"))),
+    Claim("stay {} dB PSNR from the raw model's ({} dB of held-out PSNR",
+          cell(DEMO_DRAWS, ("owner_seed0", "owner"), FROM_RAW), *losses(DEMO_DRAWS, SEEDS[:1])),
+    Claim("fern: {} hand-held photos at 504x378; horns: {} at 252x189",
+          grep("results/real_llff/fern/reconstruct.log", r"(\d+) of \d+ photos registered"),
+          grep("results/real_llff/horns_252x189/reconstruct.log", r"(\d+) of \d+ photos registered")),
+    Claim("on its own, at {}-{} dB from the raw renders",
+          span(*seeds(FERN, FROM_RAW), *seeds(HORNS, FROM_RAW))),
+    Claim("and {}-{} dB of held-out PSNR against the photos",
+          span(*losses(FERN, SEEDS), *losses(HORNS, SEEDS))),
+    Claim("a second reconstruction of horns {}-{} dB", span(*losses(DRAWS, SEEDS))),
+    Claim("keeps those readings on fern at {}-{} dB (horns {}-{}",
+          span(*seeds(FERN2, FROM_RAW, runs=AUTO)), span(*seeds(HORNS, FROM_RAW, runs=AUTO))),
+    Claim("(horns, 32 draws: {}% of bits per image against the defaults' {}%)",
+          mean(*seeds(DRAWS, "crop:0.1", runs=AUTO, index=4)), mean(*seeds(DRAWS, "crop:0.1", index=4))),
+
+    # -- the figures table, row by row --
+    Claim("(real: {} photos, 504x378, reconstructed here; raw {} its)",
+          grep("results/real_llff/fern/reconstruct.log", r"(\d+) of \d+ photos registered"),
+          grep(FERN, r"Raw model: \d+ Gaussians, (\d+) iterations")),
+    Claim("| {}% ({} of 3) / {}% ({} of 12) on each seed; Table 1 per image identity/gn/dropout/crop {}% each "
+          "as the owner, one draw of each attack as the paper (read blind, the paper's reading: here {}-{}% "
+          "per image; paper, LLFF: 3.26-4.86%) | **{} / {} / {} dB** | {} -> {} / {} / {} (**{}**;",
+          highest(*single_views(FERN, SEEDS, "held-out mean")),
+          lowest(*single_views(FERN, SEEDS, "held-out views")),
+          highest(*single_views(FERN, SEEDS, "free mean")),
+          lowest(*single_views(FERN, SEEDS, "free 'present'")),
+          highest(*table1(FERN, SEEDS)),
+          span(*[cell(FERN, (r, "blind"), "identity") for r in SEEDS]),
+          *seeds(FERN, FROM_RAW), cell(FERN, SEEDS[0:1] + ("owner",), RAW_PSNR),
+          *seeds(FERN, RAW_PSNR, index=1), diffs(FERN, SEEDS[:1])[0]),
+    Claim("view-dependent colour alone (`--mask f_rest`) {}% at {} dB (3 seeds); CONCAT+3DGS {}% at {} dB "
+          "| {}% / {}% | **{} dB** | {} -> {} (**{}**)",
+          highest(*table1(FERN2, [f"owner_seed{i}_frest500" for i in range(3)])),
+          mean(*seeds(FERN2, FROM_RAW, runs=[f"owner_seed{i}_frest500" for i in range(3)])),
+          grep("results/real_llff/fern_252x189/baselines/concat/eval.md",
+               r"^\| watermarked \| identity \|.*\| ([\d.]+) / [\d.]+ / [\d.]+ \|$"),
+          grep("results/real_llff/fern_252x189/baselines/concat/eval.md",
+               r"^\| watermarked vs raw renders \| ([\d.]+)"),
+          cell(FERN2, ("owner_seed0", "owner"), "held-out mean"), cell(FERN2, ("owner_seed0", "owner"), "free mean"),
+          cell(FERN2, ("owner_seed0", "owner"), FROM_RAW), cell(FERN2, ("owner_seed0", "owner"), RAW_PSNR),
+          cell(FERN2, ("owner_seed0", "owner"), RAW_PSNR, 1), diffs(FERN2, SEEDS[:1])[0]),
+    Claim("(real: {} photos at 252x189, reconstructed here: {} of 62, centres {}% from LLFF's poses; raw {} dB), "
+          "embed's defaults, seeds 0-2 | {}% ({} of 8) / 48 free viewpoints {}% on each seed; Table 1 per image "
+          "{}% each (one draw of each attack) | **{} / {} / {} dB** | {} -> {} / {} / {} (**{}**)",
+          grep("results/real_llff/horns_252x189/reconstruct.log", r"\d+ of (\d+) photos registered"),
+          grep("results/real_llff/horns_252x189/reconstruct.log", r"(\d+) of \d+ photos registered"),
+          grep("results/real_llff/horns_252x189/model_info.txt", r"off by median ([\d.]+)%"),
+          grep(HORNS, r"held-out PSNR ([\d.]+) dB"),
+          highest(*single_views(HORNS, SEEDS, "held-out mean")),
+          lowest(*single_views(HORNS, SEEDS, "held-out views")),
+          highest(*single_views(HORNS, SEEDS, "free mean")),
+          highest(*table1(HORNS, SEEDS)),
+          *seeds(HORNS, FROM_RAW), cell(HORNS, ("owner_seed0", "owner"), RAW_PSNR),
+          *seeds(HORNS, RAW_PSNR, index=1), mean(*diffs(HORNS, SEEDS))),
+    Claim("| {}% / {}% on every run; Table 1 per image {}% each; chosen: nothing on fern, crop on horns seeds 0-1 "
+          "| fern **{} / {} / {}**, horns {} / {} / **{} dB** (defaults: fern {}; horns {} / {} / {}) "
+          "| fern {} -> {} / {} / {}, horns {} -> {} / {} / {} |",
+          highest(*single_views(FERN2, AUTO, "held-out mean"), *single_views(HORNS, AUTO, "held-out mean")),
+          highest(*single_views(FERN2, AUTO, "free mean"), *single_views(HORNS, AUTO, "free mean")),
+          highest(*table1(FERN2, AUTO), *table1(HORNS, AUTO)),
+          *seeds(FERN2, FROM_RAW, runs=AUTO), *seeds(HORNS, FROM_RAW, runs=AUTO),
+          cell(FERN2, ("owner_seed0", "owner"), FROM_RAW), *seeds(HORNS, FROM_RAW),
+          cell(FERN2, ("owner_seed0_autor", "owner"), RAW_PSNR), *seeds(FERN2, RAW_PSNR, runs=AUTO, index=1),
+          cell(HORNS, ("owner_seed0_autor", "owner"), RAW_PSNR), *seeds(HORNS, RAW_PSNR, runs=AUTO, index=1)),
+    Claim("seeds 0-2 | {} / {} / {}% ({} / {} / {}) / 48 free viewpoints {} / {} / {}% | **{} / {} / {} dB** "
+          "| {} -> {} / {} / {} ({}) |",
+          *single_views(DEMO_DRAWS, SEEDS, "held-out mean"), *single_views(DEMO_DRAWS, SEEDS, "held-out mean", 1),
+          *single_views(DEMO_DRAWS, SEEDS, "free mean"), *seeds(DEMO_DRAWS, FROM_RAW),
+          cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR), *seeds(DEMO_DRAWS, RAW_PSNR, index=1),
+          mean(*diffs(DEMO_DRAWS, SEEDS))),
+    Claim("gn / dropout / crop {} / {} / **{}%** (crop's first draw, the paper's one-draw protocol: {}%; single "
+          "draws 0-{}%), aggregated 0-{} of 48; `--distortions auto` {} / {} / {}% | {} dB; auto **{}** "
+          "| {}; auto {} |",
+          *[mean(*table1(DEMO_DRAWS, SEEDS, [a], 4)) for a in ATTACKS[1:]],
+          highest(*table1(DEMO_DRAWS, SEEDS, ["crop:0.1"])),
+          highest(*table1(DEMO_DRAWS, SEEDS, ATTACKS[1:], 5)),
+          highest(*table1(DEMO_DRAWS, SEEDS, ATTACKS[1:], 6)),
+          *[mean(*table1(DEMO_DRAWS, AUTO, [a], 4)) for a in ATTACKS[1:]],
+          mean(*seeds(DEMO_DRAWS, FROM_RAW)), mean(*seeds(DEMO_DRAWS, FROM_RAW, runs=AUTO)),
+          mean(*seeds(DEMO_DRAWS, RAW_PSNR, index=1)), mean(*seeds(DEMO_DRAWS, RAW_PSNR, runs=AUTO, index=1))),
+    Claim("gn / dropout / crop {} / {}-{} / **{}-{}%** (3 draws of 32 above 1%, largest {}%); aggregated at most "
+          "{} of 48, 'present' on {} of 32 draws of each, every seed; single views alone {} of 8 held-out, {} of 48 "
+          "free; auto crop {}-{}%",
+          highest(*table1(DRAWS, SEEDS, ["gn:0.01"], 4)), span(*table1(DRAWS, SEEDS, ["dropout:0.1"], 4)),
+          span(*table1(DRAWS, SEEDS, ["crop:0.1"], 4)), highest(*table1(DRAWS, SEEDS, ["crop:0.1"], 5)),
+          highest(*table1(DRAWS, SEEDS, ATTACKS[1:], 6)), lowest(*table1(DRAWS, SEEDS, ATTACKS[1:], 8)),
+          lowest(*single_views(DRAWS, SEEDS + AUTO, "held-out views")),
+          lowest(*single_views(DRAWS, SEEDS + AUTO, "free 'present'")),
+          span(*table1(DRAWS, AUTO, ["crop:0.1"], 4))),
+    Claim("why the default keeps the layers | {}-{}; auto {}-**{}** | {} -> {}-{}; auto {}-{} |",
+          span(*seeds(DRAWS, FROM_RAW)), span(*seeds(DRAWS, FROM_RAW, runs=AUTO)),
+          cell(DRAWS, ("owner_seed0", "owner"), RAW_PSNR), span(*seeds(DRAWS, RAW_PSNR, index=1)),
+          span(*seeds(DRAWS, RAW_PSNR, runs=AUTO, index=1))),
+    Claim("| {}% ({}) / 12 free viewpoints {} / {} / {}% (two of them are close-ups inside the ring;",
+          probe("v2_owner_s0", "owner held"), grep(OWNER, r"^v2_owner_s0\s.*?owner held\s+[\d.]+% p90\s+([\d.]+)"),
+          *[grep(OWNER, rf"^v2_owner_s{i}\s.*?owner held .*?\| free\s+([\d.]+)%") for i in range(3)]),
+    Claim("history](docs/history.md#free-viewpoints-12-or-48-and-the-hard-viewpoint-pool)) | {}-{} dB | {}-{} |",
+          span(*[probe(f"v2_owner_s{i}", "vs raw") for i in range(3)]),
+          span(*[probe(f"v2_owner_s{i}", "PSNR") for i in range(3)])),
+    Claim("| {}% ({}) / {}% | {} dB | {} (raw {}: {}) |",
+          probe("blind_default", "held"), grep(OWNER, r"^blind_default\s+held\s+[\d.]+% p90\s+([\d.]+)"),
+          grep(OWNER, r"^blind_default\s.*?\| free\s+([\d.]+)%"), probe("blind_default", "vs raw"),
+          probe("blind_default", "PSNR"), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR),
+          difference(probe("blind_default", "PSNR"), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR))),
+    Claim("| {} of 20 \"present\" alone (whole, cropped 80%, shrunk 75%); raw model's {} of 20 |",
+          grep(DETECT, r"^alt_base.*?wm: (\d+) of 20 present"), grep(DETECT, r"^alt_base.*?raw control: (\d+) present")),
+    Claim("aligned without options (scale {} where OpenSplat's is {}; taken as it is: {} dB vs photos); held-out "
+          "{} / {} / {}% ({} of 6 \"present\" alone each); another scene's workspace refused in one line, {} s "
+          "| **{} / {} / {} dB** | {} -> {}-{} ({} to {}) |",
+          grep("results/third_party/opensplat_demo/extract_owner_s0.log", r"scale ([\d.]+)"),
+          grep("results/third_party/opensplat_demo/README.md", r"scaled by 1 / ([\d.]+)"),
+          grep(OPENSPLAT, r"^seed 0: held-out PSNR, --align off: watermarked vs ground truth ([\d.]+)"),
+          *[grep(OPENSPLAT, rf"^seed {i}: owner's reading, each held-out view alone: mean BER ([\d.]+)%")
+            for i in range(3)],
+          lowest(*[grep(OPENSPLAT, rf"^seed {i}: owner's reading.*?(\d+) of 6 'present'") for i in range(3)]),
+          grep("results/third_party/opensplat_demo/README.md", r"refused in one line, ([\d.]+) s"),
+          *[grep(OPENSPLAT, rf"^seed {i}: held-out PSNR, placed: .*?raw renders ([\d.]+) dB") for i in range(3)],
+          grep(OPENSPLAT, r"^seed 0: held-out PSNR, placed: .*?raw vs ground truth ([\d.]+) dB"),
+          span(*[grep(OPENSPLAT, rf"^seed {i}: held-out PSNR, placed: watermarked vs ground truth ([\d.]+)")
+                 for i in range(3)]),
+          span(*[difference(grep(OPENSPLAT, rf"^seed {i}: held-out PSNR, placed: watermarked vs ground truth ([\d.]+)"),
+                            grep(OPENSPLAT, rf"^seed {i}: held-out PSNR, placed: .*?raw vs ground truth ([\d.]+)"))
+                 for i in range(3)])),
+    # -- the second table --
+    Claim("| {} single reads of 4 unmarked models: single keys {}-{}x the binomial rate at 1e-2",
+          cell(NULL, ("text:WGS-26, key 0", "1", "0.01"), "Trials"),
+          span(*[cell(NULL, (f"text:WGS-26, key {k}", "1", "0.01"), "Empirical / binomial") for k in range(3)])),
+    Claim("| reconstruct {} s (fern; horns' log keeps no time), train {} / {} min, embed and read {}-{} / {}-{} min",
+          grep("results/real_llff/fern/reconstruct.log", r"^real\s+0m([\d.]+)s"),
+          scaled(1 / 60, grep("results/real_llff/fern/times.txt", r"^train (\d+)")),
+          scaled(1 / 60, grep("results/real_llff/horns_252x189/times.txt", r"^train (\d+)")),
+          scaled(1 / 60, span(*[grep("results/real_llff/fern/times.txt", rf"^embed\+read:owner_seed{i} (\d+)$")
+                                for i in range(3)])),
+          scaled(1 / 60, span(*[grep("results/real_llff/horns_252x189/times.txt",
+                                     rf"^embed\+read:owner_seed{i} (\d+)$") for i in range(3)]))),
+    Claim("| train {} it/s, embed {} it/s (blind default)",
+          grep(GPU, r"^train: .*\(([\d.]+) it/s\)"),
+          combine(lambda v: v[0] / v[1], grep(GPU, r"^embed: (\d+) iterations in ([\d.]+)s"))),
+    # -- what works --
+    Claim("the owner's reading (default) at {} dB from the raw renders, the blind one at {} dB",
+          cell(DEMO_DRAWS, ("owner_seed0", "owner"), FROM_RAW), probe("blind_default", "vs raw")),
+    Claim("JPEG-90 free-viewpoint screenshots read \"present\" alone {} of 20 times",
+          grep(DETECT, r"^alt_base.*?wm: (\d+) of 20 present")),
+    Claim("all {} parity tests pass, compute-sanitizer clean, the demo trains at {} it/s and embeds at {} it/s",
+          grep("results/gpu/h200-2026-11-26/README.md", r"\((\d+) pass"),
+          grep(GPU, r"^train: .*\(([\d.]+) it/s\)"),
+          combine(lambda v: v[0] / v[1], grep(GPU, r"^embed: (\d+) iterations in ([\d.]+)s"))),
+]
+
+
+# ---- The check. --------------------------------------------------------------------------------
+
+def _context(text, start, end):
+    """Where a figure's file must be named: its table row, or its paragraph and the one before."""
+    line_start = text.rfind("\n", 0, start) + 1
+    line_end = text.find("\n", end)
+    line_end = len(text) if line_end < 0 else line_end
+    if text[line_start:line_end].startswith("|"):
+        return text[line_start:line_end]
+    para_start = text.rfind("\n\n", 0, start)
+    para_start = text.rfind("\n\n", 0, para_start) if para_start > 0 else 0
+    para_end = text.find("\n\n", end)
+    return text[max(para_start, 0):len(text) if para_end < 0 else para_end]
+
+
+def _named(path, context):
+    """The file, or a folder above it (results/x/ or results/x), is named in the context."""
+    parts = path.split("/")
+    candidates = ["/".join(parts[:i]) for i in range(2, len(parts) + 1)]
+    return any(re.search(re.escape(c) + r"(/|\b)", context) for c in candidates)
+
+
+def _rounding(figure):
+    decimals = len(figure.split(".")[1]) if "." in figure else 0
+    return 0.5 * 10 ** -decimals + 1e-9
+
+
+def _one_line(text):
+    return " ".join(text.split())
+
+
+def _check_claim(claim, readme, root):
+    files = ", ".join(claim.files())
+    m = claim.pattern().search(readme)
+    if not m:
+        label = claim.name or claim.phrase.replace("{}", "N")
+        return [f'README figure "{_one_line(label)}" not found in the README (its file: {files})']
+    shown = _one_line(m.group(0))
+    context = _context(readme, m.start(), m.end())
+    problems = [f'README figure "{shown}": its file {f} is not named beside it'
+                for f in claim.files() if not _named(f, context)]
+    try:
+        expected = [v for s in claim.sources for v in s.values(root)]
+    except LookupError as e:
+        return problems + [f'README figure "{shown}": {e}']
+    figures = m.groups()
+    if len(expected) != len(figures):
+        return problems + [f'README figure "{shown}": {len(figures)} figures in the README, '
+                           f'{len(expected)} read from {files}']
+    for figure, value in zip(figures, expected):
+        tol = claim.tol if claim.tol is not None else _rounding(figure)
+        if abs(float(figure.replace(",", "")) - value) > tol:
+            problems.append(f'README figure "{shown}" does not match {files}: README {figure}, '
+                            f'file {value:.6g} (tolerance {tol:.3g})')
+    return problems
+
+
+def _check_lines(block, readme, root):
+    start = readme.find(block.first_line)
+    if start < 0:
+        return [f'README block "{block.first_line}" not found in the README (its file: {block.path})']
+    end = readme.find("```", start)
+    try:
+        lines = {block.normalize(line.rstrip()) for line in _text(root, block.path).splitlines()}
+    except LookupError as e:
+        return [f'README block "{block.first_line}": {e}']
+    problems = []
+    if not _named(block.path, _context(readme, start, start)):
+        problems.append(f'README block "{block.first_line}": its file {block.path} is not named beside it')
+    for line in readme[start:end].rstrip("\n").splitlines():
+        if block.normalize(line.rstrip()) not in lines:
+            problems.append(f'README figure "{_one_line(line)}" is not a line of {block.path}')
+    return problems
+
+
+def check(readme, root, claims=None):
+    """One line per problem, in the manifest's order; empty when every figure matches its file."""
+    problems = []
+    for claim in CLAIMS if claims is None else claims:
+        if isinstance(claim, Lines):
+            problems += _check_lines(claim, readme, root)
+        else:
+            problems += _check_claim(claim, readme, root)
+    return problems
