@@ -7,7 +7,9 @@
 #                                         fuzzing tools
 # Idempotent: packages already present are skipped without touching the network.
 # --tests also installs the npm tools (PlayCanvas splat-transform and the Node 22 it needs, npm
-# packages) into WATERGS_NPM_PREFIX (default ~/.cache/watergs/npm; --npm_only installs just those).
+# packages) into WATERGS_NPM_PREFIX (default ~/.cache/watergs/npm; --npm_only installs just those),
+# and the web viewer harness's packages (tests/viewer: three, @mkkellogg/gaussian-splats-3d,
+# playcanvas, puppeteer-core, pinned by its package-lock.json) into tests/viewer/node_modules.
 set -euo pipefail
 npm_prefix="${WATERGS_NPM_PREFIX:-${XDG_CACHE_HOME:-$HOME/.cache}/watergs/npm}"
 # The npm packages of the npm group, pinned: the converter version docs/formats.md was checked
@@ -20,7 +22,7 @@ for arg in "$@"; do
     --tests) want_tests=1 ;;
     --all) want_tests=1 want_all=1 ;;
     --npm_only) want_tests=1 npm_only=1 ;;
-    -h|--help) sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "install_deps: unknown option $arg (--tests, --all)" >&2; exit 2 ;;
   esac
 done
@@ -48,7 +50,7 @@ group fuzz "$want_all" --all "fuzzing (scripts/fuzz.sh): clang and its libFuzzer
 # install that bundles npm would conflict with Debian's package).
 npm_client=npm
 command -v npm > /dev/null && npm_client=""
-group npm "$want_tests" --tests "the splat-transform round-trip test: npm (Debian), then npm packages ${npm_packages[*]} into $npm_prefix" \
+group npm "$want_tests" --tests "the splat-transform round-trip test and the web viewer harness (tests/viewer): npm (Debian), then npm packages ${npm_packages[*]} into $npm_prefix" \
   $npm_client
 
 # Installs the npm packages into $npm_prefix unless the pinned ones are there already.
@@ -63,6 +65,21 @@ install_npm_tools() {
   mkdir -p "$npm_prefix"
   [ -f "$npm_prefix/package.json" ] || echo '{"private": true}' > "$npm_prefix/package.json"
   npm install --prefix "$npm_prefix" --no-audit --no-fund --loglevel=error "${npm_packages[@]}"
+}
+
+# The viewer harness's node_modules (`npm ci` from its lock file) unless every pinned package is
+# there at its version already.
+install_viewer_harness() {
+  local dir
+  dir="$(cd "$(dirname "$0")/.." && pwd)/tests/viewer"
+  if (cd "$dir" && node -e 'const deps = require("./package.json").dependencies;
+      for (const [name, version] of Object.entries(deps))
+        if (require(`./node_modules/${name}/package.json`).version !== version) process.exit(1);' 2> /dev/null); then
+    echo "install_deps: viewer harness: $dir/node_modules (all present)"
+    return 0
+  fi
+  echo "install_deps: viewer harness: npm ci in $dir"
+  (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error)
 }
 
 if [ "$npm_only" -eq 1 ]; then
@@ -92,5 +109,8 @@ if [ ${#missing[@]} -gt 0 ]; then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
-[ "$want_tests" -eq 1 ] && install_npm_tools
+if [ "$want_tests" -eq 1 ]; then
+  install_npm_tools
+  install_viewer_harness
+fi
 exit 0
