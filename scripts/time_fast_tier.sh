@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Times the everyday test tier (`ctest --test-dir BUILD -LE slow -j2`) and writes what the README's
+# Testing section quotes: the command, commit, date, machine, load, wall time and CTest's summary
+# lines. COLMAP's binary is replaced on PATH by one that records its call and fails, so a test of
+# the tier that runs COLMAP fails and is named in the file ("colmap calls: ...").
+#   scripts/time_fast_tier.sh [BUILD] [OUT_FILE]   (defaults: build, results/testing/fast_tier.txt)
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+build="${1:-$root/build}"
+out="${2:-$root/results/testing/fast_tier.txt}"
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+mkdir -p "$tmp/bin" "$(dirname "$out")"
+printf '#!/bin/sh\necho "colmap $*" >> "%s/colmap_calls"\nexit 1\n' "$tmp" > "$tmp/bin/colmap"
+chmod +x "$tmp/bin/colmap"
+command=(ctest --test-dir "$build" -LE slow -j2)
+load_before=$(cut -d' ' -f1-3 /proc/loadavg)
+start=$(date +%s%N)
+set +e
+PATH="$tmp/bin:$PATH" "${command[@]}" > "$tmp/ctest.log" 2>&1
+rc=$?
+set -e
+wall=$(( ($(date +%s%N) - start) / 1000000000 ))
+load_after=$(cut -d' ' -f1-3 /proc/loadavg)
+{
+  echo "# The everyday test tier, timed by scripts/time_fast_tier.sh"
+  echo "command: ${command[*]/#$root\//} (colmap on PATH replaced by a stand-in that fails)"
+  echo "commit: $(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- . 2>/dev/null || echo ', working tree dirty (others editing the checkout)')"
+  echo "date: $(date -u '+%Y-%m-%d %H:%M UTC')"
+  echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')"
+  echo "load average (1, 5, 15 min) before: $load_before; after: $load_after"
+  echo "wall: $wall s"
+  echo "exit status: $rc"
+  echo "tests: $(ctest --test-dir "$build" -N -LE slow | grep -o 'Total Tests: [0-9]*' | grep -o '[0-9]*') in the tier, $(ctest --test-dir "$build" -N -L slow | grep -o 'Total Tests: [0-9]*' | grep -o '[0-9]*') labelled slow, $(ctest --test-dir "$build" -N | grep -o 'Total Tests: [0-9]*' | grep -o '[0-9]*') in all"
+  echo "colmap calls: $( [ -s "$tmp/colmap_calls" ] && wc -l < "$tmp/colmap_calls" || echo 0)"
+  echo
+  echo "## CTest's summary"
+  sed -n '/tests passed\|tests failed/,$p' "$tmp/ctest.log"
+  echo
+  echo "## The 15 longest tests (seconds)"
+  grep -E 'Test +#[0-9]+:' "$tmp/ctest.log" | sed -E 's/.*Test +#[0-9]+: ([^ ]+) \.+ *([A-Za-z*]+[A-Za-z ]*) +([0-9.]+) sec/\3 \1 \2/' |
+    sort -rn | head -15
+} > "$out"
+cat "$out"
+exit $rc
