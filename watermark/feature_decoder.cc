@@ -2,8 +2,11 @@
 #include "watermark/feature_decoder.h"
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <utility>
+#include <vector>
 
 #include "gaussian/util/error.h"
 
@@ -43,6 +46,45 @@ void ReluGlobalAvgPoolBackward(const Tensor& dfeatures, const Tensor& y,
   }
 }
 
+// One line of n values `stride` apart -> its clipped box mean of radius r
+// (adjoint: the adjoint of that map). Prefix sums in double.
+void BoxLine(const float* in, float* out, int n, size_t stride, int r,
+             bool adjoint, std::vector<double>* prefix) {
+  prefix->assign(size_t(n) + 1, 0.0);
+  auto count = [&](int i) {
+    return std::min(n - 1, i + r) - std::max(0, i - r) + 1;
+  };
+  for (int i = 0; i < n; ++i) {
+    const double v = in[size_t(i) * stride];
+    (*prefix)[i + 1] = (*prefix)[i] + (adjoint ? v / count(i) : v);
+  }
+  for (int i = 0; i < n; ++i) {
+    const int lo = std::max(0, i - r), hi = std::min(n - 1, i + r);
+    const double sum = (*prefix)[hi + 1] - (*prefix)[lo];
+    out[size_t(i) * stride] = float(adjoint ? sum : sum / count(i));
+  }
+}
+
+// x [N,C,H,W] -> y = x - B x (adjoint: x - B^T x), B the separable box.
+void Highpass(const Tensor& x, int r, bool adjoint, Tensor* y) {
+  y->ResizeLike(x);
+  const int planes = x.n * x.c;
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < planes; ++k) {
+    std::vector<double> prefix;
+    std::vector<float> rows(x.PlaneSize()), box(x.PlaneSize());
+    const float* in = x.Plane(k / x.c, k % x.c);
+    for (int row = 0; row < x.h; ++row)
+      BoxLine(in + size_t(row) * x.w, rows.data() + size_t(row) * x.w, x.w, 1,
+              r, adjoint, &prefix);
+    for (int col = 0; col < x.w; ++col)
+      BoxLine(rows.data() + col, box.data() + col, x.h, x.w, r, adjoint,
+              &prefix);
+    float* out = y->Plane(k / x.c, k % x.c);
+    for (size_t i = 0; i < x.PlaneSize(); ++i) out[i] = in[i] - box[i];
+  }
+}
+
 constexpr int64_t kDesignVersion = 1;
 
 FeatureDecoderConfig CheckedConfig(const FeatureDecoderConfig& config) {
@@ -58,6 +100,9 @@ FeatureDecoderConfig CheckedConfig(const FeatureDecoderConfig& config) {
   if (config.kernel < 1 || config.kernel > 15 || config.kernel % 2 == 0)
     Fail("feature decoder: kernel " + std::to_string(config.kernel) +
          " is not odd in [1, 15]");
+  if (config.highpass < 0 || config.highpass > 64)
+    Fail("feature decoder: highpass " + std::to_string(config.highpass) +
+         " outside [0, 64]");
   return config;
 }
 
@@ -118,6 +163,14 @@ void ConvInputGradient(const Conv2d& conv, const Tensor& dy,
 
 }  // namespace
 
+void HighpassForward(const Tensor& x, int r, Tensor* y) {
+  Highpass(x, r, false, y);
+}
+
+void HighpassBackward(const Tensor& dy, int r, Tensor* dx) {
+  Highpass(dy, r, true, dx);
+}
+
 void AvgPoolForward(const Tensor& x, int p, Tensor* y) {
   const int h = x.h / p, w = x.w / p;
   y->Resize(x.n, x.c, h, w);
@@ -173,15 +226,30 @@ const Tensor& FeatureNet::Forward(const Tensor& image) {
          " channels) is smaller than its " + std::to_string(config_.pool) +
          "x" + std::to_string(config_.pool) + " pooling");
   image_ = &image;
-  if (config_.pool > 1) {
-    AvgPoolForward(image, config_.pool, &pooled_);
-    conv.Forward(pooled_, &conv_out_);
-  } else {
-    conv.Forward(image, &conv_out_);
-  }
+  if (config_.pool > 1) AvgPoolForward(image, config_.pool, &pooled_);
+  if (config_.highpass > 0)
+    HighpassForward(config_.pool > 1 ? pooled_ : image, config_.highpass,
+                    &residual_);
+  conv.Forward(ConvInput(), &conv_out_);
   ReluGlobalAvgPoolForward(conv_out_, &features_);
   linear.Forward(features_, &logits_);
   return logits_;
+}
+
+const Tensor& FeatureNet::ConvInput() const {
+  if (config_.highpass > 0) return residual_;
+  return config_.pool > 1 ? pooled_ : *image_;
+}
+
+void FeatureNet::InputBackward(Tensor* dconv_input, Tensor* dimage) {
+  Tensor* dbefore_highpass = config_.pool > 1 ? &dpooled_ : dimage;
+  if (config_.highpass > 0) {
+    HighpassBackward(*dconv_input, config_.highpass, dbefore_highpass);
+  } else {
+    std::swap(*dconv_input, *dbefore_highpass);
+  }
+  if (config_.pool > 1)
+    AvgPoolBackward(dpooled_, config_.pool, *image_, dimage);
 }
 
 void FeatureNet::FeatureBackward(const Tensor& dfeatures, Tensor* dimage) {
@@ -189,10 +257,8 @@ void FeatureNet::FeatureBackward(const Tensor& dfeatures, Tensor* dimage) {
     Fail("feature decoder: FeatureBackward needs a single-image Forward");
   }
   ReluGlobalAvgPoolBackward(dfeatures, conv_out_, &drelu_);
-  ConvInputGradient(conv, drelu_, &dcol_,
-                    config_.pool > 1 ? &dpooled_ : dimage);
-  if (config_.pool > 1)
-    AvgPoolBackward(dpooled_, config_.pool, *image_, dimage);
+  ConvInputGradient(conv, drelu_, &dcol_, &dresidual_);
+  InputBackward(&dresidual_, dimage);
 }
 
 void FeatureNet::Backward(const Tensor& dlogits, Tensor* dimage) {
@@ -201,14 +267,11 @@ void FeatureNet::Backward(const Tensor& dlogits, Tensor* dimage) {
   ReluGlobalAvgPoolBackward(dfeatures_, conv_out_, &drelu_);
   if (drelu_.n != 1) {
     // Batches (calibration never backpropagates): the general layer.
-    conv.Backward(config_.pool > 1 ? pooled_ : *image_, drelu_,
-                  config_.pool > 1 ? &dpooled_ : dimage, false);
+    conv.Backward(ConvInput(), drelu_, &dresidual_, false);
   } else {
-    ConvInputGradient(conv, drelu_, &dcol_,
-                      config_.pool > 1 ? &dpooled_ : dimage);
+    ConvInputGradient(conv, drelu_, &dcol_, &dresidual_);
   }
-  if (config_.pool > 1)
-    AvgPoolBackward(dpooled_, config_.pool, *image_, dimage);
+  InputBackward(&dresidual_, dimage);
 }
 
 NetworkFile FeatureNetToFile(FeatureNet& net) {
@@ -221,6 +284,8 @@ NetworkFile FeatureNetToFile(FeatureNet& net) {
                {"kernel", config.kernel},
                {"input_range", 1},
                {"design", kDesignVersion}};
+  // Written only when set, so that a decoder without it stays the same file.
+  if (config.highpass > 0) file.meta.push_back({"highpass", config.highpass});
   for (const Parameter* p :
        {&net.conv.weight, &net.conv.bias, &net.linear.weight, &net.linear.bias})
     file.tensors.push_back(TensorRecord{p->name, p->shape, p->value});
@@ -245,6 +310,8 @@ std::unique_ptr<FeatureNet> FeatureNetFromFile(const std::string& path,
   config.channels = int(file.Meta("channels", path));
   config.pool = int(file.Meta("pool", path));
   config.kernel = int(file.Meta("kernel", path));
+  for (const auto& [key, value] : file.meta)
+    if (key == "highpass") config.highpass = int(value);
   if (expected_bits > 0 && config.num_bits != expected_bits)
     FailAt(path, "decoder reads " + std::to_string(config.num_bits) +
                      " bits, expected " + std::to_string(expected_bits));

@@ -9,6 +9,8 @@
 //
 //   D(x) = A . GAP(ReLU(conv_k(avgpool_p(2x - 1)))) + b
 //
+// (optionally conv_k reads avgpool_p(.) minus its box mean: `highpass`)
+//
 // with the convolution's outputs standardised on photos (BatchNorm folded
 // in) and A = s P Sigma^-1/2, b = -A mu: mu, Sigma the mean and covariance of
 // the pooled features over photo crops, P a random orthogonal L x C
@@ -17,8 +19,8 @@
 //
 // Weights file: the network container (network_file.h), kind
 // "feature-decoder", meta num_bits, channels, pool, kernel, input_range (1:
-// images mapped to [-1, 1]), design (1); tensors conv.weight [C,3,k,k],
-// conv.bias [C], linear.weight [L,C], linear.bias [L].
+// images mapped to [-1, 1]), design (1), highpass (only when > 0); tensors
+// conv.weight [C,3,k,k], conv.bias [C], linear.weight [L,C], linear.bias [L].
 #pragma once
 
 #include <cstdint>
@@ -45,6 +47,10 @@ struct FeatureDecoderConfig {
   int pool = 4;
   // Side of the convolution's kernel (odd).
   int kernel = 3;
+  // 0: the features read the pooled image. r > 0: they read its residual,
+  // the pooled image minus its (2r+1)^2 box mean, so the scene's smooth
+  // shading and colour (what an unmarked view's logits lean on) is not read.
+  int highpass = 0;
 };
 
 // The network: avgpool -> conv -> ReLU -> global average pool -> linear.
@@ -79,7 +85,14 @@ class FeatureNet {
   // Input of the last Forward (owned by the caller).
   const Tensor* image_ = nullptr;
   // Activations of the last Forward and gradient scratch.
-  Tensor pooled_, conv_out_, features_, logits_, dfeatures_, drelu_, dpooled_;
+  Tensor pooled_, residual_, conv_out_, features_, logits_, dfeatures_, drelu_,
+      dresidual_, dpooled_;
+
+  // The convolution's input of the last Forward: the (pooled) image or its
+  // residual.
+  const Tensor& ConvInput() const;
+  // dconv_input -> dimage through the residual and the pooling.
+  void InputBackward(Tensor* dconv_input, Tensor* dimage);
   std::vector<float> dcol_;
 };
 
@@ -89,6 +102,12 @@ void AvgPoolForward(const Tensor& x, int p, Tensor* y);
 // dy [N,C,H/p,W/p] -> dx [N,C,H,W] (H, W from `like`): each block's pixels
 // get dy / p^2, the dropped border 0.
 void AvgPoolBackward(const Tensor& dy, int p, const Tensor& like, Tensor* dx);
+
+// x [N,C,H,W] -> y = x - B x, B the mean over the (2r+1)^2 box around each
+// pixel clipped to the image (each pixel divided by its own box's count).
+void HighpassForward(const Tensor& x, int r, Tensor* y);
+// dy -> dx = dy - B^T dy (the exact adjoint of HighpassForward).
+void HighpassBackward(const Tensor& dy, int r, Tensor* dx);
 
 // The network as a weights file, and back; `path` names the file in errors.
 // Refuses another kind, missing/extra/misshapen tensors, non-finite weights,

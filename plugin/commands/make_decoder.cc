@@ -85,6 +85,9 @@ int RunMakeDecoder(int argc, char** argv) {
   parser.Add("pool", &options.config.pool,
              "average pooling of the image before the features");
   parser.Add("kernel", &options.config.kernel, "convolution kernel side");
+  parser.Add("highpass", &options.config.highpass,
+             "0: the features read the pooled image; r: its residual (minus "
+             "its (2r+1)^2 box mean), blind to smooth shading");
   parser.Add("crop", &options.crop, "side of the calibration crops");
   parser.Add("normalisation_crops", &options.normalisation_crops,
              "crops that standardise the convolution");
@@ -151,6 +154,7 @@ int RunMakeDecoder(int argc, char** argv) {
        << ", \"channels\": " << options.config.channels
        << ", \"pool\": " << options.config.pool
        << ", \"kernel\": " << options.config.kernel
+       << ", \"highpass\": " << options.config.highpass
        << ", \"photos\": " << report.photos_used
        << ", \"feature_crops\": " << options.feature_crops
        << ", \"floored_eigenvalues\": " << report.floored_eigenvalues;

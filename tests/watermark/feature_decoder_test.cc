@@ -38,6 +38,24 @@ std::vector<double> ReferenceLogits(const FeatureNet& net,
       for (int x = 0; x < w * p; ++x)
         pooled[(c * h + y / p) * w + x / p] +=
             (2 * image[(y * width + x) * 3 + c] - 1) / (p * p);
+  if (cfg.highpass > 0) {
+    // Minus the mean over the (2r+1)^2 box clipped to the pooled image.
+    const int r = cfg.highpass;
+    std::vector<double> residual(pooled.size());
+    for (int c = 0; c < 3; ++c)
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          double sum = 0;
+          int count = 0;
+          for (int yy = std::max(0, y - r); yy <= std::min(h - 1, y + r); ++yy)
+            for (int xx = std::max(0, x - r); xx <= std::min(w - 1, x + r);
+                 ++xx)
+              sum += pooled[(c * h + yy) * w + xx], ++count;
+          residual[(c * h + y) * w + x] =
+              pooled[(c * h + y) * w + x] - sum / count;
+        }
+    pooled = residual;
+  }
   std::vector<double> features(cfg.channels, 0.0);
   for (int o = 0; o < cfg.channels; ++o) {
     for (int y = 0; y < h; ++y) {
@@ -83,11 +101,13 @@ ImageRGB RandomImage(int width, int height, uint32_t seed) {
 }
 
 TEST(FeatureDecoderTest, ForwardAndInputGradientMatchDoubleReference) {
-  for (int pool : {1, 2, 3}) {
-    FeatureDecoderConfig config{3, 5, pool, 3};
-    FeatureDecoder decoder(RandomNet(config, 7 + pool));
+  for (const auto& [pool, highpass] : std::vector<std::pair<int, int>>{
+           {1, 0}, {2, 0}, {3, 0}, {1, 1}, {2, 2}}) {
+    FeatureDecoderConfig config{3, 5, pool, 3, highpass};
+    FeatureDecoder decoder(RandomNet(config, 7 + pool + 10 * highpass));
     // Not a multiple of the pool: the dropped border must get no gradient.
-    const int width = 4 * pool + (pool > 1), height = 3 * pool + (pool > 1);
+    // Wider than the high-pass box, so that both clipped and whole boxes occur.
+    const int width = 6 * pool + (pool > 1), height = 5 * pool + (pool > 1);
     const ImageRGB image = RandomImage(width, height, 3);
     std::vector<double> x(image.data.begin(), image.data.end());
     const std::vector<double> want =
@@ -118,6 +138,28 @@ TEST(FeatureDecoderTest, ForwardAndInputGradientMatchDoubleReference) {
     EXPECT_GT(max_value, 1e-3) << pool;
     EXPECT_LT(max_error, 1e-4 * max_value) << "pool " << pool;
   }
+}
+
+TEST(FeatureDecoderTest, HighpassBackwardIsTheAdjointOfForward) {
+  std::mt19937 rng(2);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  for (int r : {1, 3, 20}) {
+    Tensor x(2, 3, 11, 9), y, dy, dx;
+    for (float& v : x.data) v = normal(rng);
+    HighpassForward(x, r, &y);
+    dy.ResizeLike(y);
+    for (float& v : dy.data) v = normal(rng);
+    HighpassBackward(dy, r, &dx);
+    double lhs = 0, rhs = 0;
+    for (size_t i = 0; i < y.size(); ++i) lhs += double(y.data[i]) * dy.data[i];
+    for (size_t i = 0; i < x.size(); ++i) rhs += double(x.data[i]) * dx.data[i];
+    EXPECT_NEAR(lhs, rhs, 1e-4 * (1 + std::abs(lhs))) << r;
+  }
+  // A flat image has no residual: the front end cannot lean on brightness.
+  Tensor flat(1, 3, 7, 8), residual;
+  flat.Fill(0.6f);
+  HighpassForward(flat, 2, &residual);
+  for (float v : residual.data) EXPECT_NEAR(v, 0.f, 1e-6f);
 }
 
 TEST(FeatureDecoderTest, AvgPoolBackwardIsTheAdjointOfForward) {
@@ -229,6 +271,17 @@ TEST_F(FeatureDecoderFileTest, RoundTripAndRefusals) {
   EXPECT_EQ(loaded->NumBits(), 8);
   EXPECT_EQ(loaded->Logits(image), want);
   EXPECT_THROW(LoadBitDecoder(Path("d.bin"), Device::kCpu, 48), Error);
+  // The high-pass front end travels in the file (and only when set).
+  FeatureDecoderConfig residual_config = config;
+  residual_config.highpass = 2;
+  FeatureDecoder residual(RandomNet(residual_config, 3));
+  EXPECT_EQ(FeatureNetToFile(*net).meta.size() + 1,
+            FeatureNetToFile(residual.net()).meta.size());
+  WriteNetworkFile(Path("r.bin"), FeatureNetToFile(residual.net()));
+  const std::vector<float> residual_logits = residual.Logits(image);
+  EXPECT_NE(residual_logits, want);
+  EXPECT_EQ(LoadBitDecoder(Path("r.bin"), Device::kCpu)->Logits(image),
+            residual_logits);
   // The HiDDeN loader names the kind it found.
   try {
     Decoder::Load(Path("d.bin"));

@@ -22,6 +22,10 @@ CudaFeatureDecoder::CudaFeatureDecoder(FeatureNet& net, bool allow_tf32)
     : config_(net.config()),
       context_(std::make_unique<CudaNnContext>(allow_tf32)),
       linear_(std::make_unique<CudaLinear>(context_.get(), net.linear)) {
+  if (config_.highpass > 0)
+    Fail("feature decoder: the high-pass front end (highpass " +
+         std::to_string(config_.highpass) +
+         ") has no CUDA kernel yet; decode with --device cpu");
   const int taps = ConvTaps(), channels = config_.channels;
   const std::vector<float>& w = net.conv.weight.value;
   const std::vector<float>& b = net.conv.bias.value;
