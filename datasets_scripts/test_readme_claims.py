@@ -122,6 +122,24 @@ class SourcesTest(unittest.TestCase):
         loss = readme_claims.losses(path, ("s0", "s1"))
         self.assertAlmostEqual(self.values(loss[1])[0], 0.42)
 
+    def test_json_values_and_every_element_of_a_list(self):
+        with open(os.path.join(self.tmp.name, "results", "x.json"), "w") as f:
+            f.write('{"owner": {"ber": 0.25, "views": [{"bit_errors": 1}, {"bit_errors": 0}]}}')
+        self.assertEqual(self.values(readme_claims.json_at("results/x.json", "owner", "ber")), [0.25])
+        self.assertEqual(self.values(readme_claims.json_at("results/x.json", "owner", "views", "*", "bit_errors")),
+                         [1.0, 0.0])
+        with self.assertRaises(LookupError):
+            self.values(readme_claims.json_at("results/x.json", "blind", "ber"))
+
+    def test_a_block_must_be_lines_of_its_file(self):
+        with open(os.path.join(self.tmp.name, "results", "log.txt"), "w") as f:
+            f.write("+ watergs train\n== summary (12 s)\nraw BER 52.08%\nwm BER 0.00%\n")
+        block = readme_claims.Lines("== summary", "results/log.txt")
+        readme = "The run (results/log.txt):\n\n```\n== summary (12 s)\nraw BER 52.08%\n```\n"
+        self.assertEqual(readme_claims.check(readme, self.tmp.name, [block]), [])
+        (problem,) = readme_claims.check(readme.replace("52.08", "50.08"), self.tmp.name, [block])
+        self.assertEqual(problem, 'README figure "raw BER 50.08%" is not a line of results/log.txt')
+
     def test_tolerance_is_the_readmes_rounding(self):
         claim = readme_claims.Claim("at {} dB", readme_claims.cell("results/t.md", ("s0", "owner"), "PSNR", 1))
         self.assertEqual(readme_claims.check("at 27.8 dB", self.tmp.name, [claim]), [
