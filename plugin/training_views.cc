@@ -67,7 +67,9 @@ void WriteCamerasJson(const std::string& path, const TrainingViews& source,
                     {"position", {center.x(), center.y(), center.z()}},
                     {"rotation", rows},
                     {"fy", cam.fy},
-                    {"fx", cam.fx}});
+                    {"fx", cam.fx},
+                    {"cx", cam.cx},
+                    {"cy", cam.cy}});
   }
   AtomicWriteFile(path, list.dump() + "\n");
 }

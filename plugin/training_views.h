@@ -35,7 +35,9 @@ std::array<float, 3> ParseBackground(const std::string& text);
 
 // Writes Inria's cameras.json for `views` of `source`: a list of {id,
 // img_name (name without extension), width, height, position (camera
-// centre), rotation (camera-to-world, rows), fx, fy}.
+// centre), rotation (camera-to-world, rows), fx, fy}, plus cx, cy (pixels,
+// COLMAP convention), which Inria's file leaves out (a web viewer harness
+// renders at exact intrinsics from it).
 void WriteCamerasJson(const std::string& path, const TrainingViews& source,
                       const std::vector<size_t>& views);
 

@@ -87,7 +87,9 @@ int RunRender(int argc, char** argv) {
              "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("image_path", &ws.image_path,
              "Image folder (default <workspace>/images)");
-  parser.AddRequired("output_path", &output_path, "Folder for the PNGs");
+  parser.AddRequired("output_path", &output_path,
+                     "Folder for the PNGs and their cameras (cameras.json: "
+                     "Inria's, with cx, cy)");
   parser.Add("split", &split,
              "Views to render: test (every 8th), train (the others) or all");
   parser.Add("downscale", &ws.downscale, "Image downscale: 1, 2, 4 or 8");
@@ -185,6 +187,9 @@ int RunRender(int argc, char** argv) {
     bar.Update(static_cast<int64_t>(k + 1));
   }
   bar.Finish();
+  // The rendered cameras as Inria's cameras.json (with cx, cy), as for free
+  // viewpoints: another renderer can be compared at exactly these cameras.
+  WriteCamerasJson(output_path + "/cameras.json", views, selected);
   const double n = std::max<size_t>(selected.size(), 1);
   nlohmann::json report = {
       {"model", input_path},

@@ -217,6 +217,17 @@ TEST(InterfaceCli, ImagesOptionalWhereNoGroundTruthIsNeeded) {
   ASSERT_EQ(render.exit_code, 0) << render.output;
   EXPECT_NE(render.output.find("no PSNR"), std::string::npos) << render.output;
   EXPECT_TRUE(fs::exists(dir / "renders/frame_1000.png")) << render.output;
+  // The rendered cameras beside them, with the principal point Inria's
+  // cameras.json leaves out (the web viewer harness, tests/viewer, reads it).
+  const auto rendered = ReadJson(dir / "renders/cameras.json");
+  ASSERT_FALSE(rendered.empty());
+  EXPECT_EQ(rendered[0]["img_name"], "frame_1000");
+  for (const char* key : {"cx", "cy"}) {
+    ASSERT_TRUE(rendered[0].contains(key)) << key;
+    EXPECT_GT(rendered[0][key].get<double>(), 0.0) << key;
+  }
+  EXPECT_LT(rendered[0]["cx"].get<double>(),
+            rendered[0]["width"].get<double>());
   // Free viewpoints: their cameras beside the images (Inria's cameras.json),
   // the ones extract --num_views samples for that seed.
   const auto free = RunCommand(

@@ -43,37 +43,36 @@ def read_png(path):
     channels = {0: 1, 2: 3, 4: 2, 6: 4}.get(colour)
     if depth != 8 or interlace != 0 or channels is None:
         raise ValueError(f"{path}: only 8-bit non-interlaced grey/RGB(A) PNGs")
-    raw = np.frombuffer(zlib.decompress(b"".join(idat)), np.uint8)
+    raw = zlib.decompress(b"".join(idat))
     stride = width * channels
-    rows = raw.reshape(height, stride + 1)
-    out = np.zeros((height, stride), np.int32)
-    prev = np.zeros(stride, np.int32)
-    for y in range(height):
-        kind, line = rows[y, 0], rows[y, 1:].astype(np.int32)
-        cur = np.zeros(stride, np.int32)
-        if kind == 0:
-            cur = line
+    out = bytearray(height * stride)
+    prev = bytearray(stride)
+    for y in range(height):  # PNG's filters, undone in plain Python ints (fast enough at these sizes)
+        kind = raw[y * (stride + 1)]
+        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        if kind == 1:
+            for x in range(channels, stride):
+                line[x] = (line[x] + line[x - channels]) & 255
         elif kind == 2:
-            cur = (line + prev) & 255
-        elif kind in (1, 3, 4):  # sequential in x: left neighbour needed
+            line = bytearray((np.frombuffer(line, np.uint8) + np.frombuffer(prev, np.uint8)).tobytes())
+        elif kind == 3:
             for x in range(stride):
-                a = cur[x - channels] if x >= channels else 0
+                left = line[x - channels] if x >= channels else 0
+                line[x] = (line[x] + ((left + prev[x]) >> 1)) & 255
+        elif kind == 4:
+            for x in range(stride):
+                a = line[x - channels] if x >= channels else 0
                 b = prev[x]
                 c = prev[x - channels] if x >= channels else 0
-                if kind == 1:
-                    pred = a
-                elif kind == 3:
-                    pred = (a + b) >> 1
-                else:
-                    p = a + b - c
-                    pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-                    pred = a if pa <= pb and pa <= pc else (b if pb <= pc else c)
-                cur[x] = (line[x] + pred) & 255
-        else:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[x] = (line[x] + (a if pa <= pb and pa <= pc else (b if pb <= pc else c))) & 255
+        elif kind != 0:
             raise ValueError(f"{path}: bad filter {kind}")
-        out[y] = cur
-        prev = cur
-    image = out.reshape(height, width, channels).astype(np.uint8)
+        out[y * stride:(y + 1) * stride] = line
+        prev = line
+    out = np.frombuffer(bytes(out), np.uint8)
+    image = out.reshape(height, width, channels)
     if channels in (1, 2):
         image = np.repeat(image[:, :, :1], 3, axis=2)
     return image[:, :, :3]
