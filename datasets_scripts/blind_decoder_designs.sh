@@ -6,6 +6,8 @@
 # embeds the demo blind at each fidelity point with single_view_probe.sh. One design a call, so
 # a stopped run resumes where it stopped (each finished step leaves its file).
 #   datasets_scripts/blind_decoder_designs.sh OUT CORPUS DESIGN
+# POINTS (environment, default "inria lr02_mse50") chooses the points; POINTS= builds and measures
+# the decoder only.
 # DESIGN: shipped | steerable256 | residual2 | pool2 | residual2_steerable256
 # Writes OUT/DESIGN/{decoder.bin,make_decoder.json,lean.json,raw_blind.json} and appends the
 # embedding points to OUT/results.txt (labels DESIGN_POINT).
@@ -55,5 +57,10 @@ probe() {  # POINT [embed options]
   RAW="$raw" DECODER="$decoder" bash "$root/datasets_scripts/single_view_probe.sh" "$out" "$label" \
     --reading blind "$@"
 }
-probe inria
-probe lr02_mse50 --lr_scale 0.2 --fidelity input --mse_weight 50
+for point in ${POINTS-inria lr02_mse50}; do
+  case "$point" in
+    inria) probe inria ;;
+    lr02_mse50) probe lr02_mse50 --lr_scale 0.2 --fidelity input --mse_weight 50 ;;
+    *) echo "blind_decoder_designs: unknown point '$point'" >&2; exit 2 ;;
+  esac
+done
