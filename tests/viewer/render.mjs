@@ -12,8 +12,8 @@
 // maps pixel u = fx x/z + cx to NDC 2u/W - 1 (and v to 1 - 2v/H) exactly, principal point
 // included. --set passes a viewer switch (gs3d: a Viewer option such as
 // sphericalHarmonicsDegree=2; playcanvas: unified=false or an app.scene.gsplat parameter such as
-// minPixelSize=0). Each camera is drawn until two screenshots in a row are identical (a viewer
-// that sorts in a worker has caught up; at most --max_draws). Writes DIR/<img_name>.png and
+// minPixelSize=0). Each camera is drawn until three screenshots in a row, 0.1 s apart, are
+// identical (a viewer that sorts in a worker has caught up; at most --max_draws). Writes DIR/<img_name>.png and
 // DIR/viewer.json (the viewer, its switches, seconds per frame, draws per camera).
 // Exit 2 on a usage error, 1 when a page or the browser fails.
 import { createServer } from 'node:http';
@@ -174,6 +174,10 @@ async function main() {
       model: '/model' + extname(args.model), background, width, height, [args.viewer]: switches,
     }).catch((e) => { throw new Error(`${e.message}\n${errors.join('\n')}`); });
     const loadSeconds = (Date.now() - start) / 1000;
+    // The first camera once before the real ones: a viewer that builds its buffers on the first
+    // frames (PlayCanvas' unified renderer) has done so before any screenshot is kept.
+    await page.evaluate((c) => window.harness.show(c), cameras[0]);
+    await page.evaluate(() => window.harness.redraw());
     const frames = [];
     for (const cam of cameras) {
       const t0 = Date.now();
@@ -183,14 +187,16 @@ async function main() {
       await page.evaluate((c) => window.harness.show(c), cam);
       const clip = { x: 0, y: 0, width: cam.width, height: cam.height };
       let shot = await page.screenshot({ type: 'png', clip });
-      let draws = 1, settled = false;
-      while (draws < maxDraws) {
+      let draws = 1, same = 0;
+      while (draws < maxDraws && same < 2) {
+        await new Promise((ok) => setTimeout(ok, 100));
         await page.evaluate(() => window.harness.redraw());
         const next = await page.screenshot({ type: 'png', clip });
         ++draws;
-        if (Buffer.compare(next, shot) === 0) { settled = true; break; }
+        same = Buffer.compare(next, shot) === 0 ? same + 1 : 0;
         shot = next;
       }
+      const settled = same >= 2;
       writeFileSync(join(args.output, `${cam.name}.png`), shot);
       frames.push({ name: cam.name, width: cam.width, height: cam.height, draws, settled,
                     seconds: (Date.now() - t0) / 1000 });

@@ -47,16 +47,41 @@ export async function create(canvas, options) {
     progressiveLoad: false,
   });
 
+  // floatTarget (a harness switch, not the viewer's): blend into a half-float target and
+  // quantise to 8 bits once, as watergs does, instead of at every blend in the 8-bit canvas.
+  const floatTarget = switches.floatTarget === true;
+  delete switches.floatTarget;
+  let target = null, blit = null;
+  if (floatTarget) {
+    target = new THREE.WebGLRenderTarget(options.width, options.height, { type: THREE.HalfFloatType });
+    const material = new THREE.ShaderMaterial({
+      uniforms: { source: { value: target.texture } },
+      vertexShader: 'varying vec2 uv0; void main() { uv0 = uv; gl_Position = vec4(position.xy, 0.0, 1.0); }',
+      fragmentShader: 'uniform sampler2D source; varying vec2 uv0; void main() { gl_FragColor = texture2D(source, uv0); }',
+      depthTest: false, depthWrite: false,
+    });
+    blit = { scene: new THREE.Scene(), camera: new THREE.OrthographicCamera(-1, 1, 1, -1, 0, 1) };
+    blit.scene.add(new THREE.Mesh(new THREE.PlaneGeometry(2, 2), material));
+  }
+
   async function draw() {
     viewer.update();
-    viewer.render();
+    if (target) {
+      renderer.setRenderTarget(target);
+      viewer.render();
+      renderer.setRenderTarget(null);
+      renderer.render(blit.scene, blit.camera);
+    } else {
+      viewer.render();
+    }
     await frames(2);
   }
   return {
-    describe: () => ({ viewer: 'three.js ' + THREE.REVISION + ' + @mkkellogg/gaussian-splats-3d', switches,
+    describe: () => ({ viewer: 'three.js ' + THREE.REVISION + ' + @mkkellogg/gaussian-splats-3d', switches: { ...switches, floatTarget },
                        splats: viewer.getSplatMesh().getSplatCount() }),
     resize(width, height) {
       renderer.setSize(width, height, false);
+      if (target) target.setSize(width, height);
     },
     async show(cam) {
       projection.fromArray(cam.projection);
