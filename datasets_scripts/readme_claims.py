@@ -19,7 +19,7 @@ import statistics
 NUMBER = r"(-?\d[\d,]*(?:\.\d+)?)"
 
 
-# ---- Sources: each returns (files it read, list of figures). -----------------------------------
+# ---- Sources: the files a figure is read from, and how (values(root) -> list of figures). ------
 
 class Source:
     def __init__(self, files, read):
@@ -52,15 +52,6 @@ def grep(path, pattern, flags=re.M):
         return [float(g.replace(",", "")) for g in m.groups()]
     return Source([path], read)
 
-
-def grep_all(path, pattern, flags=re.M):
-    """Group 1 of every match of pattern in the file, in order."""
-    def read(root):
-        found = [float(g.replace(",", "")) for g in re.findall(pattern, _text(root, path), flags)]
-        if not found:
-            raise LookupError(f"{path}: no line matches /{pattern}/")
-        return found
-    return Source([path], read)
 
 
 def cell(path, keys, column, index=0):
@@ -112,6 +103,13 @@ def json_at(path, *keys):
     return Source([path], read)
 
 
+def count(path, pattern):
+    """How many lines of the file match pattern."""
+    def read(root):
+        return [float(len(re.findall(pattern, _text(root, path), re.M)))]
+    return Source([path], read)
+
+
 def combine(function, *sources):
     """function(all the sources' figures, in order) -> one figure or a list of them."""
     def read(root):
@@ -146,12 +144,6 @@ def difference(a, b):
 def scaled(factor, source):
     return combine(lambda v: [x * factor for x in v], source)
 
-
-def count(path, pattern):
-    """How many lines of the file match pattern."""
-    def read(root):
-        return [float(len(re.findall(pattern, _text(root, path), re.M)))]
-    return Source([path], read)
 
 
 class Claim:
@@ -190,6 +182,8 @@ HORNS = "results/real_llff/horns_252x189/tables.md"
 DRAWS = "results/real_llff/horns_252x189_draws/tables.md"
 DEMO_DRAWS = "results/demo_draws/tables.md"
 DEMO = "results/demo/run_demo.log"
+DEMO_HELD = "results/demo/extract_wm_heldout.json"
+DEMO_FREE = "results/demo/extract_wm_free.json"
 OWNER = "results/owner_reading/results.txt"
 OPENSPLAT = "results/third_party/opensplat_demo/summary.txt"
 GPU = "results/gpu/h200-2026-11-26/demo.txt"
@@ -210,10 +204,6 @@ def probe(label, field):
     after field (e.g. 'owner held ', 'free48 ', 'vs raw ')."""
     return grep(OWNER, r"^" + re.escape(label) + r"\s.*?" + re.escape(field) + r"\s*" + NUMBER)
 
-
-def demo_line(row, field):
-    """A figure of the demo summary's row (`wm (6 held-out)`, ...): the number after field."""
-    return grep(DEMO, r"^" + re.escape(row) + r"\s.*?" + re.escape(field) + r"\s*" + NUMBER)
 
 
 AUTO = ("owner_seed0_autor", "owner_seed1_autor", "owner_seed2_autor")
@@ -250,6 +240,13 @@ def crop_draws(run, field):
                    "?attack=crop:0.1&model=watermarked", "draws", "owner", "per_draw", "*", field)
 
 
+def report_row(attack, verdict):
+    """Bits wrong of the demo report's row for the watermarked file under attack (a name or its
+    start), which must read verdict ("present", "absent", "inconclusive")."""
+    return grep("results/demo/report.html", r'<tr><td>watermarked</td><td class="attack">' + re.escape(attack)
+                + r'[^<]*</td>.*?\((\d+) / 48\)</td>.*?class="' + verdict + '"')
+
+
 CLAIMS = [
     # -- the introduction --
     Claim("reads about {}% of the bits on its own",
@@ -269,6 +266,32 @@ CLAIMS = [
     Claim("(horns, 32 draws: {}% of bits per image against the defaults' {}%)",
           mean(*seeds(DRAWS, "crop:0.1", runs=AUTO, index=4)), mean(*seeds(DRAWS, "crop:0.1", index=4))),
 
+    # -- the demo's run (scripts/run_demo.sh), its summary and what the text reads from it --
+    Claim("load average {}-{}) it took {} s: training {}m{}s, embedding {}m{}s",
+          grep("results/demo/commands.txt", r"load average (\d+)-(\d+)"),
+          grep(DEMO, r"^== demo summary .*, (\d+) s\)$"),
+          grep(DEMO, r"^train: \d+ iterations in (\d+)m(\d+)s"), grep(DEMO, r"^embed: \d+ iterations in (\d+)m(\d+)s")),
+    Lines("== demo summary (message", DEMO,
+          normalize=lambda line: re.sub(r"decoder \S*/watermark/models/", "decoder .../watermark/models/", line)),
+    Claim("The raw model reads {} of 48 bits right",
+          combine(lambda v: 48 - round(v[0] * 48 / 100), grep(DEMO, r"^raw\s+BER ([\d.]+)%"))),
+    Claim("one camera's render alone misses {}% of the bits ({}% after Gaussian noise)",
+          grep(DEMO, r"^wm\s+BER.*?one view: BER mean ([\d.]+)%"),
+          grep(DEMO, r"^wm_gn\s+BER.*?one view: BER mean ([\d.]+)%")),
+    Claim("read {}, {}, {}, {}, {} and {} bits wrong one by one ({}%;",
+          json_at(DEMO_HELD, "owner", "views", "*", "bit_errors"),
+          scaled(100, json_at(DEMO_HELD, "owner", "view_ber", "mean"))),
+    Claim("48 free viewpoints between cameras {}% ({} of them \"present\" alone under a key; the worst, "
+          "close-ups from inside the ring, {} and {} of 48;",
+          scaled(100, json_at(DEMO_FREE, "owner", "view_ber", "mean")),
+          combine(lambda v: sum(x <= 7 for x in v), json_at(DEMO_FREE, "owner", "views", "*", "bit_errors")),
+          combine(lambda v: sorted(v)[-2:], json_at(DEMO_FREE, "owner", "views", "*", "bit_errors"))),
+    Claim("**{} dB PSNR from the raw model's** on the held-out views, and the watermark costs {} dB",
+          grep(DEMO, r"watermarked vs the raw renders: ([\d.]+) dB"),
+          combine(lambda v: v[0] - v[1], grep(DEMO, r"held-out PSNR vs the photos: raw ([\d.]+) dB, watermarked ([\d.]+) dB"))),
+    Claim("embeds for that reader ({}% per held-out view) at {} dB from the raw renders and {} dB",
+          probe("blind_default", "held"), probe("blind_default", "vs raw"),
+          difference(probe("blind_default", "PSNR"), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR))),
     # -- the figures table, row by row --
     Claim("(real: {} photos, 504x378, reconstructed here; raw {} its)",
           grep("results/real_llff/fern/reconstruct.log", r"(\d+) of \d+ photos registered"),
@@ -363,6 +386,8 @@ CLAIMS = [
           difference(probe("blind_default", "PSNR"), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR))),
     Claim("| {} of 20 \"present\" alone (whole, cropped 80%, shrunk 75%); raw model's {} of 20 |",
           grep(DETECT, r"^alt_base.*?wm: (\d+) of 20 present"), grep(DETECT, r"^alt_base.*?raw control: (\d+) present")),
+    Claim("OpenSplat 1.1.5 on the demo ({} Gaussians, SH {}, its default normalised frame)",
+          grep("results/third_party/opensplat_demo/README.md", r"([\d,]+) Gaussians, SH degree (\d)")),
     Claim("aligned without options (scale {} where OpenSplat's is {}; taken as it is: {} dB vs photos); held-out "
           "{} / {} / {}% ({} of 6 \"present\" alone each); another scene's workspace refused in one line, {} s "
           "| **{} / {} / {} dB** | {} -> {}-{} ({} to {}) |",
@@ -380,7 +405,29 @@ CLAIMS = [
           span(*[difference(grep(OPENSPLAT, rf"^seed {i}: held-out PSNR, placed: watermarked vs ground truth ([\d.]+)"),
                             grep(OPENSPLAT, rf"^seed {i}: held-out PSNR, placed: .*?raw vs ground truth ([\d.]+)"))
                  for i in range(3)])),
+    # -- testing: the everyday tier, as scripts/time_fast_tier.sh measured it --
+    Claim("`ctest --test-dir build` runs {} tests ({} labelled `slow`;",
+          grep(FAST, r"^tests: \d+ in the tier, \d+ labelled slow, (\d+) in all"),
+          grep(FAST, r"^tests: \d+ in the tier, (\d+) labelled slow")),
+    Claim("2 cores: {} tests) and runs the other {} without COLMAP in {} s at `-j2` ({} skip without a GPU, saying why)",
+          grep(FAST, r"^tests: \d+ in the tier, (\d+) labelled slow"), grep(FAST, r"^tests: (\d+) in the tier"),
+          grep(FAST, r"^wall: (\d+) s"), count(FAST, r"\(Skipped\)$")),
+    Claim("(load average {} before, {} after; the tests' CPU time, {} s,",
+          grep(FAST, r"^load average \(1, 5, 15 min\) before: ([\d.]+)"),
+          grep(FAST, r"^load average \(1, 5, 15 min\) before: .*; after: ([\d.]+)"),
+          grep(FAST, r"^cpu \(user \+ sys, all tests\): (\d+) s")),
+    Claim("logs its calls first on PATH: {} calls", grep(FAST, r"^colmap calls: (\d+)")),
+    Claim("saying why), {} failed", grep(FAST, r"^\d+% tests passed, (\d+) tests failed"), name="the fast tier's failures"),
     # -- the second table --
+    Claim("| attacks on the file, as the owner (48 cameras) | {} of 48 wrong, \"present\": `gn:0.01`, `dropout:0.1`, "
+          "`crop:0.1`, `sh0`, `fp16`, `shuffle`, `similarity`, `prune:0.05`, `jpeg:75`, `resize:0.5`; `quant:8` "
+          "\"absent\" ({} of 48)",
+          highest(*[report_row(a, "present") for a in ("gn:0.01", "dropout:0.1", "crop:0.1", "sh0", "fp16", "shuffle",
+                                                       "similarity:", "prune:0.05", "jpeg:75", "resize:0.5")]),
+          report_row("quant:8", "absent")),
+    Claim("| the demo above, {} s on cores shared with other jobs (training {}m{}s, embedding {}m{}s)",
+          grep(DEMO, r"^== demo summary .*, (\d+) s\)$"),
+          grep(DEMO, r"^train: \d+ iterations in (\d+)m(\d+)s"), grep(DEMO, r"^embed: \d+ iterations in (\d+)m(\d+)s")),
     Claim("| {} single reads of 4 unmarked models: single keys {}-{}x the binomial rate at 1e-2",
           cell(NULL, ("text:WGS-26, key 0", "1", "0.01"), "Trials"),
           span(*[cell(NULL, (f"text:WGS-26, key {k}", "1", "0.01"), "Empirical / binomial") for k in range(3)])),

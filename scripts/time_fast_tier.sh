@@ -16,7 +16,7 @@ command=(ctest --test-dir "$build" -LE slow -j2)
 load_before=$(cut -d' ' -f1-3 /proc/loadavg)
 start=$(date +%s%N)
 set +e
-PATH="$tmp/bin:$PATH" "${command[@]}" > "$tmp/ctest.log" 2>&1
+PATH="$tmp/bin:$PATH" /usr/bin/time -f "%U %S" -o "$tmp/cpu" "${command[@]}" > "$tmp/ctest.log" 2>&1
 rc=$?
 set -e
 wall=$(( ($(date +%s%N) - start) / 1000000000 ))
@@ -29,6 +29,9 @@ load_after=$(cut -d' ' -f1-3 /proc/loadavg)
   echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')"
   echo "load average (1, 5, 15 min) before: $load_before; after: $load_after"
   echo "wall: $wall s"
+  # CPU seconds of ctest and every test it ran: on 2 idle cores the tier needs at least half of it.
+  read -r user sys < <(tail -1 "$tmp/cpu")
+  echo "cpu (user + sys, all tests): $(python3 -c "print(round($user + $sys))") s"
   echo "exit status: $rc"
   echo "tests: $(ctest --test-dir "$build" -N -LE slow | grep -o 'Total Tests: [0-9]*' | grep -o '[0-9]*') in the tier, $(ctest --test-dir "$build" -N -L slow | grep -o 'Total Tests: [0-9]*' | grep -o '[0-9]*') labelled slow, $(ctest --test-dir "$build" -N | grep -o 'Total Tests: [0-9]*' | grep -o '[0-9]*') in all"
   echo "colmap calls: $( [ -s "$tmp/colmap_calls" ] && wc -l < "$tmp/colmap_calls" || echo 0)"
@@ -37,8 +40,9 @@ load_after=$(cut -d' ' -f1-3 /proc/loadavg)
   sed -n '/tests passed\|tests failed/,$p' "$tmp/ctest.log"
   echo
   echo "## The 15 longest tests (seconds)"
-  grep -E 'Test +#[0-9]+:' "$tmp/ctest.log" | sed -E 's/.*Test +#[0-9]+: ([^ ]+) \.+ *([A-Za-z*]+[A-Za-z ]*) +([0-9.]+) sec/\3 \1 \2/' |
-    sort -rn | head -15
+  grep -E 'Test +#[0-9]+:' "$tmp/ctest.log" |
+    sed -E 's/.*Test +#[0-9]+: (.*[^ .]) \.+ *\**([A-Za-z][A-Za-z ]*[a-z]) +([0-9.]+) sec$/\3 \1 (\2)/' |
+    sort -rn | sed -n 1,15p
 } > "$out"
 cat "$out"
 exit $rc
