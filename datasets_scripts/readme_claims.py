@@ -191,6 +191,7 @@ FAST = "results/testing/fast_tier.txt"
 DETECT = "results/owner_reading/detect_probe.txt"
 NULL = "results/owner_reading/owner_null.md"
 BLIND = "results/blind_designs/results.txt"
+EMBED_1M = "results/embed_1m/synthetic_1m_defaults.log"
 
 RAW_PSNR = "PSNR vs photos"
 FROM_RAW = "PSNR vs raw renders"
@@ -464,6 +465,13 @@ CLAIMS = [
           grep(BLIND, r"^residual2_inria\s.*?\| free\s+([\d.]+)%"), probe("residual2_inria", "vs raw", BLIND),
           probe("residual2_inria", "PSNR", BLIND), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR),
           difference(probe("residual2_inria", "PSNR", BLIND), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR))),
+    Claim("| {} s an iteration (render {}, decoder {}, backward {}, Adam {} s): {} min for 1,500 iterations; "
+          "with a 256 px decoder crop {} s, {} min; peak memory {} GB",
+          combine(lambda v: [v[0] / 1e3, v[2] / 1e3, v[4] / 1e3, v[5] / 1e3, v[7] / 1e3, v[0] * 1.5 / 60],
+                  grep(EMBED_1M, r"^4 layers, full frame, embed's defaults" + r"\s+([\d.]+)" * 8)),
+          combine(lambda v: [v[0] / 1e3, v[0] * 1.5 / 60],
+                  grep(EMBED_1M, r"^4 layers, crop 256, embed's defaults\s+([\d.]+)")),
+          scaled(1e-6, grep(EMBED_1M, r"Maximum resident set size \(kbytes\): (\d+)"))),
 ]
 
 
