@@ -472,6 +472,9 @@ CLAIMS = [
           combine(lambda v: [v[0] / 1e3, v[0] * 1.5 / 60],
                   grep(EMBED_1M, r"^4 layers, crop 256, embed's defaults\s+([\d.]+)")),
           scaled(1e-6, grep(EMBED_1M, r"Maximum resident set size \(kbytes\): (\d+)"))),
+    Claim("reads every held-out view blind at {} dB (0 of 48 bits wrong each;\n{} free viewpoints {}%; `pool2_inria`)",
+          probe("pool2_inria", "vs raw", BLIND), grep(BLIND, r"^pool2_inria\s.*?\| free(\d+)\s"),
+          grep(BLIND, r"^pool2_inria\s.*?\| free\s+([\d.]+)%")),
 ]
 
 
