@@ -14,8 +14,17 @@ The rules are fixed here, before any run is seen, so that a table cannot be tune
 standard library only; claims.md is written atomically.
 
 With --readme README.md [--root DIR] it checks instead that every figure the README claims matches
-the committed file under results/ named beside it (the manifest: readme_claims.py), one line on
+the committed file under results/ named beside it (the manifest: readme_claims.py; the paper's own
+figures are read from its source, ../shared/paper/water-gs.tex, and named "paper"), one line on
 stderr per mismatch naming the figure and the file, exit status 1 if any.
+
+With --readme README.md --uncovered it lists instead every number of the README that no claim of
+the manifest covers, one "LINE: NUMBER" per line on stdout and a count on stderr (exit status 0; 1
+with --strict when any is listed). Skipped, as readme_claims.uncovered states: fenced blocks (the
+two install commands, the layout), inline code (commands, flag values), links and paths, numbers
+glued to a letter (3DGS, H200, 504x378, commits), and the settings and versions listed in
+readme_claims.SETTINGS (48 bits, seeds 0-2, 2 cores, COLMAP 3.8); what is left is a measured
+figure that no committed file backs yet.
 """
 import argparse
 import csv
@@ -217,7 +226,22 @@ def check_readme(readme, root):
         print(f"check_claims.py: {problem}", file=sys.stderr)
     if problems:
         sys.exit(1)
-    print(f"check_claims.py: {len(readme_claims.CLAIMS)} README claims match the files under results/ named beside them")
+    print(f"check_claims.py: {len(readme_claims.CLAIMS)} README claims match the files named beside them "
+          "(under results/, or the paper's source)")
+
+
+def list_uncovered(readme, strict):
+    try:
+        with open(readme, encoding="utf-8") as f:
+            text = f.read()
+    except OSError as e:
+        fail(f"{readme}: {e.strerror}")
+    found = readme_claims.uncovered(text)
+    for line, number in found:
+        print(f"{line}: {number}")
+    print(f"check_claims.py: {len(found)} numbers of {readme} outside every claim and setting", file=sys.stderr)
+    if strict and found:
+        sys.exit(1)
 
 
 def main():
@@ -227,10 +251,16 @@ def main():
     parser.add_argument("--readme", help="check this README's figures against their files instead")
     parser.add_argument("--root", help="the folder the README's results/ paths are relative to "
                         "(default: the README's folder)")
+    parser.add_argument("--uncovered", action="store_true",
+                        help="with --readme: list the README's numbers that no claim covers, instead of checking")
+    parser.add_argument("--strict", action="store_true", help="with --uncovered: exit status 1 if any is listed")
     parser.add_argument("--main_length", type=int, default=48)
     parser.add_argument("--baseline", action="append", default=[], metavar="NAME=JSON",
                         help="a baseline's extract or eval JSON (repeatable)")
     args = parser.parse_args()
+    if args.readme and args.uncovered:
+        list_uncovered(args.readme, args.strict)
+        return
     if args.readme:
         check_readme(args.readme, args.root)
         return
