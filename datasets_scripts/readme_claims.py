@@ -1,4 +1,5 @@
-"""The README's figures, each traced to the committed file under results/ that backs it.
+"""The README's figures, each traced to the committed file under results/ that backs it (the paper's
+own figures, set beside ours, to its LaTeX source: PAPER).
 
 One manifest, CLAIMS below: each entry is a README phrase with a `{}` where a measured figure
 stands, the files it comes from, how each figure is read from them, and (optionally) a tolerance.
@@ -9,7 +10,8 @@ file that is gone, or a file not named beside its figure (in the same table row,
 paragraph or the one before it). check_claims.py --readme runs it. Python standard library only.
 
 Adding a figure to the README: add an entry here naming its file; the figure then cannot drift
-from the file, nor the file from the README, without this check saying so.
+from the file, nor the file from the README, without this check saying so. `uncovered` (check_claims.py
+--readme README.md --uncovered) lists the numbers no entry covers, by the rule stated above SETTINGS.
 """
 import json
 import os
