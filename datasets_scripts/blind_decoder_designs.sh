@@ -8,7 +8,7 @@
 #   datasets_scripts/blind_decoder_designs.sh OUT CORPUS DESIGN
 # POINTS (environment, default "inria lr02_mse50") chooses the points; POINTS= builds and measures
 # the decoder only.
-# DESIGN: shipped | steerable256 | residual2 | pool2 | residual2_steerable256
+# DESIGN: shipped | steerable256 | residual2 | pool2 | pool1 | residual2_pool2 | residual2_steerable256
 # Writes OUT/DESIGN/{decoder.bin,make_decoder.json,lean.json,raw_blind.json} and appends the
 # embedding points to OUT/results.txt (labels DESIGN_POINT).
 set -euo pipefail
@@ -22,6 +22,8 @@ case "$design" in
   steerable256) options=(--steerable_subspace 256) ;;
   residual2) options=(--highpass 2) ;;
   pool2) options=(--pool 2) ;;
+  pool1) options=(--pool 1) ;;
+  residual2_pool2) options=(--highpass 2 --pool 2) ;;
   residual2_steerable256) options=(--highpass 2 --steerable_subspace 256) ;;
   *) echo "blind_decoder_designs: unknown design '$design'" >&2; exit 2 ;;
 esac

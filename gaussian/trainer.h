@@ -33,6 +33,9 @@ class TrainingViews {
   virtual RenderCamera Camera(size_t view) const = 0;
   // Ground truth, float RGB in [0, 1], the camera's size.
   virtual std::shared_ptr<const ImageRGB> Image(size_t view) const = 0;
+  // Whether the evaluation split holds the view out: LLFF's every 8th view
+  // unless the source has its own split (a workspace's test_views.txt).
+  virtual bool HeldOut(size_t view) const { return view % 8 == 0; }
 };
 
 // Views held in memory (tests, benchmarks, synthetic scenes).

@@ -350,13 +350,13 @@ double Correlation(const std::vector<float>& a, const std::vector<float>& b) {
   return (sab - sa * sb / n) / std::sqrt(va * vb);
 }
 
-// `count` views spread over the training split (every 8th view is held out,
-// as train --eval and embed --eval hold it out): the fit never sees a photo
-// that a held-out figure is measured on.
+// `count` views spread over the training split (the views train --eval and
+// embed --eval hold out are left out): the fit never sees a photo that a
+// held-out figure is measured on.
 std::vector<size_t> ProbeViews(const TrainingViews& views, int count) {
   std::vector<size_t> pool;
   for (size_t v = 0; v < views.NumViews(); ++v) {
-    if (v % 8 != 0 || views.NumViews() == 1) pool.push_back(v);
+    if (!views.HeldOut(v) || views.NumViews() == 1) pool.push_back(v);
   }
   std::vector<size_t> out;
   const size_t n = std::min<size_t>(std::max(count, 1), pool.size());

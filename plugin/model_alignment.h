@@ -33,6 +33,7 @@ class AlignedViews : public TrainingViews {
   std::shared_ptr<const ImageRGB> Image(size_t view) const override {
     return base_.Image(view);
   }
+  bool HeldOut(size_t view) const override { return base_.HeldOut(view); }
 
  private:
   const TrainingViews& base_;

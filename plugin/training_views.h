@@ -25,6 +25,9 @@ class WorkspaceViews : public TrainingViews {
     return workspace_.ViewCamera(view);
   }
   std::shared_ptr<const ImageRGB> Image(size_t view) const override;
+  bool HeldOut(size_t view) const override {
+    return workspace_.HeldOut(view);
+  }
 
  private:
   const Workspace& workspace_;

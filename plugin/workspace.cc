@@ -11,10 +11,12 @@
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 #include <tuple>
 #include <unordered_map>
 
 #include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/image_file.h"
 #include "plugin/image_header.h"
 #include "plugin/reconstruction_io.h"
@@ -315,6 +317,39 @@ Camera PinholeOf(const RenderCamera& render, camera_t camera_id) {
 
 }  // namespace
 
+// <workspace>/test_views.txt: every line an image name of the model.
+void Workspace::ReadTestViews(Workspace* workspace,
+                              const WorkspaceOptions& given) {
+  const fs::path root = given.workspace_path.empty()
+                            ? WorkspaceOfModel(given.input_path)
+                            : fs::path(given.workspace_path);
+  const fs::path path = root / "test_views.txt";
+  if (!fs::is_regular_file(path)) return;
+  std::map<std::string, size_t> view_of_name;
+  for (size_t v = 0; v < workspace->views_.size(); ++v) {
+    view_of_name[workspace->ViewName(v)] = v;
+  }
+  workspace->listed_test_.assign(workspace->views_.size(), false);
+  workspace->test_views_path_ = path.string();
+  const std::vector<uint8_t> bytes = ReadFileBytes(path.string());
+  std::istringstream lines(std::string(bytes.begin(), bytes.end()));
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) {
+      line.pop_back();
+    }
+    if (line.empty() || line[0] == '#') continue;
+    const auto it = view_of_name.find(line);
+    if (it == view_of_name.end()) {
+      FailAt(path.string(), "line " + std::to_string(number) + ": '" +
+                                Printable(line) +
+                                "' is not an image of the model " +
+                                workspace->model_path_);
+    }
+    workspace->listed_test_[it->second] = true;
+  }
+}
+
 // Fills default paths, reads the model (through colmap image_undistorter if
 // asked), sorts the views and checks every image against its camera.
 Workspace Workspace::Open(const WorkspaceOptions& options) {
@@ -361,6 +396,7 @@ Workspace Workspace::Open(const WorkspaceOptions& options) {
     CheckViewImages(model, workspace.views_, opts.image_path,
                     workspace.model_path_);
   }
+  ReadTestViews(&workspace, options);
   for (const auto& [id, camera] : model.Cameras()) {
     const Camera pinhole = UndistortCamera(camera);
     workspace.pinhole_cameras_[id] =
@@ -446,10 +482,14 @@ ImageRGB Workspace::LoadView(size_t view) const {
   return result;
 }
 
+bool Workspace::HeldOut(size_t view) const {
+  return listed_test_.empty() ? view % 8 == 0 : bool(listed_test_[view]);
+}
+
 std::vector<size_t> Workspace::TrainViews(bool eval) const {
   std::vector<size_t> views;
   for (size_t i = 0; i < views_.size(); ++i) {
-    if (!eval || i % 8 != 0) views.push_back(i);
+    if (!eval || !HeldOut(i)) views.push_back(i);
   }
   return views;
 }
@@ -457,7 +497,7 @@ std::vector<size_t> Workspace::TrainViews(bool eval) const {
 std::vector<size_t> Workspace::TestViews(bool eval) const {
   std::vector<size_t> views;
   for (size_t i = 0; eval && i < views_.size(); ++i) {
-    if (i % 8 == 0) views.push_back(i);
+    if (HeldOut(i)) views.push_back(i);
   }
   return views;
 }

@@ -65,10 +65,14 @@ class Workspace {
   // The (undistorted, downscaled) image, float RGB in [0,1]; cached (LRU,
   // bounded).
   ImageRGB LoadView(size_t view) const;
-  // LLFF/Mip-NeRF 360 convention: with eval, every 8th view (i % 8 == 0) is
-  // held out.
+  // With eval, the views named in <workspace>/test_views.txt (one image name
+  // a line, as transforms_importer writes a scene's own test split) are held
+  // out; without that file, LLFF's and Mip-NeRF 360's convention: every 8th
+  // view (i % 8 == 0).
   std::vector<size_t> TrainViews(bool eval) const;
   std::vector<size_t> TestViews(bool eval) const;
+  // Whether view i is held out under eval (the split file's, or i % 8 == 0).
+  bool HeldOut(size_t view) const;
   // SfM points: xyz (N x 3) and rgb in [0,1] (N x 3), for initialisation.
   void PointCloud(std::vector<float>* xyz, std::vector<float>* rgb) const;
   // Inria's cameras_extent: 1.1 * max distance of camera centres from their
@@ -82,6 +86,8 @@ class Workspace {
   // Whether any camera had distortion (and is rendered through an
   // undistorted pinhole camera).
   bool undistorted() const { return undistorted_; }
+  // The split file read at Open (empty: every 8th view is held out).
+  const std::string& test_views_path() const { return test_views_path_; }
   // Whether the image folder exists (always, unless images_optional).
   bool has_images() const { return has_images_; }
   // One line per camera whose intrinsics were scaled to its photos (photos
@@ -90,6 +96,7 @@ class Workspace {
 
  private:
   Workspace() = default;
+  static void ReadTestViews(Workspace* workspace, const WorkspaceOptions& given);
 
   WorkspaceOptions options_;
   std::string model_path_;
@@ -102,6 +109,9 @@ class Workspace {
   std::map<camera_t, Camera> pinhole_cameras_;
   bool undistorted_ = false;
   bool has_images_ = false;
+  // Per view: held out by the split file (empty without one).
+  std::vector<bool> listed_test_;
+  std::string test_views_path_;
   std::vector<std::string> notices_;
   std::unique_ptr<ImageLoader> loader_;
 };
