@@ -11,7 +11,7 @@ usage() {
 Usage: datasets_scripts/baseline_concat_3dgs.sh --decoder WEIGHTS --out DIR [options]
 
 Writes, under DIR:
-  raw/               the raw 3DGS model (train --eval), unless --raw is given
+  raw/               the raw 3DGS model (train --split train), unless --raw is given
   watermarked.ply    the raw model with SH offsets from the trained encoder (concat_embed)
   concat_embed.txt   concat_embed's log: BER and PSNR on a few training views
   eval.json, eval.md watergs eval of the watermarked model against the raw one
@@ -62,13 +62,13 @@ run() { baseline_run "$out" "$@"; }
 : > "$out/commands.txt"
 if [[ -z "$raw" ]]; then
   run "$binary" train --workspace_path "$workspace" --output_path "$out/raw" \
-    --iterations "$train_iterations" --downscale "$downscale" --num_threads "$num_threads" --eval
+    --iterations "$train_iterations" --downscale "$downscale" --num_threads "$num_threads" --split train
   raw="$out/raw/point_cloud.ply"
 fi
 run "$binary" concat_embed --input_path "$raw" --workspace_path "$workspace" \
   --downscale "$downscale" --decoder "$decoder" --message "$message" \
   --output_path "$out/watermarked.ply" --iterations "$iterations" --attributes "$attributes" \
-  --gamma "$gamma" --num_threads "$num_threads" --eval | tee "$out/concat_embed.txt"
+  --gamma "$gamma" --num_threads "$num_threads" --split train | tee "$out/concat_embed.txt"
 run "$binary" eval --raw_path "$raw" --input_path "$out/watermarked.ply" \
   --workspace_path "$workspace" --downscale "$downscale" --decoder "$decoder" \
   --message "$message" --num_threads "$num_threads" --output_path "$out/eval"

@@ -11,7 +11,7 @@ Usage: datasets_scripts/baseline_hidden_3dgs.sh --model WEIGHTS --out DIR [optio
 Writes, under DIR:
   images/          the workspace's images watermarked by the encoder (encode_images)
   encode.txt       their PSNR against the covers and the BER read back from them
-  model/           the 3DGS model trained on them (train --image_path DIR/images --eval)
+  model/           the 3DGS model trained on them (train --image_path DIR/images --split train)
   extract.json     the BER and verdict read from renders of the trained model (extract)
   commands.txt     the exact commands run
 
@@ -51,7 +51,7 @@ run() { baseline_run "$out" "$@"; }
 run "$binary" encode_images --image_path "$workspace/images" --output_path "$out/images" \
   --model "$model" --message "$message" | tee "$out/encode.txt"
 run "$binary" train --workspace_path "$workspace" --image_path "$out/images" \
-  --output_path "$out/model" --iterations "$iterations" --downscale "$downscale" --eval
+  --output_path "$out/model" --iterations "$iterations" --downscale "$downscale" --split train
 run "$binary" extract --input_path "$out/model/point_cloud.ply" --workspace_path "$workspace" \
   --downscale "$downscale" --decoder "$model" --message "$message" --json "$out/extract.json"
 echo "baseline_hidden_3dgs.sh: results in $out (encode.txt, extract.json)"

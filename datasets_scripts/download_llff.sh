@@ -6,7 +6,7 @@
 #                              to the names in sparse/0 so `--downscale 4|8` reads them directly)
 #   OUT/<scene>/sparse/0/      COLMAP model (cameras.bin, images.bin, points3D.bin)
 #   OUT/<scene>/poses_bounds.npy   kept for other tools
-# Scenes: fern flower fortress horns leaves orchids room trex. Held-out views: every 8th image (--eval).
+# Scenes: fern flower fortress horns leaves orchids room trex. Held-out views: every 8th image (--split train).
 #
 # Usage: bash datasets_scripts/download_llff.sh [--from DIR] [OUT_DIR (default data/llff)] [scene ...]
 #   --from DIR  lay out the scenes from a local copy instead of the archive: DIR holds <scene>/ folders

@@ -160,7 +160,7 @@ def train_rows(run_dir):
                 "final": 1 if j["iteration"] == meta["iterations"] else 0,
             })
     if not rows:
-        fail(log + ": no held-out test lines (train with --eval and --test_iterations)")
+        fail(log + ": no held-out test lines (train with --split train and --test_iterations)")
     return rows
 
 

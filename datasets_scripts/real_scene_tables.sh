@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The paper's Table 1 and the single-view figures on one real scene (an LLFF workspace laid out by
-# download_llff.sh), at settings that finish on 2 cores: trains the raw model once (--eval: every
+# download_llff.sh), at settings that finish on 2 cores: trains the raw model once (--split train: every
 # 8th photo held out), then for each embedding run READING:SEED (READING:SEED:M adds
 # --stop_margin M) embeds with embed's defaults for that reading (single_view_probe.sh: the
 # held-out views and 12 free viewpoints read one by one, PSNR against the photos and against the
@@ -42,7 +42,7 @@ if [ ! -f "$raw" ]; then
   resume=()
   [ -f "$out/raw/checkpoint.ckpt" ] && resume=(--resume)
   log "training the raw model ($iterations iterations, downscale $ds) -> $out/raw (log $out/raw.log)"
-  timed train "$bin" train --workspace_path "$scene" --output_path "$out/raw" --downscale "$ds" --eval \
+  timed train "$bin" train --workspace_path "$scene" --output_path "$out/raw" --downscale "$ds" --split train \
     --iterations "$iterations" --densify_until_iter $((iterations / 2)) --checkpoint_every 500 \
     --test_iterations "$((iterations / 2)),$iterations" --log_every 100 "${resume[@]}" >> "$out/raw.log" 2>&1
 fi
@@ -69,7 +69,7 @@ for run in "${runs[@]}"; do
      { [ "$draws" -gt 1 ] && ! grep -q "\"attack_draws\": $draws," "$dir/table1.json"; }; then
     log "Table 1 distortions for $label"
     timed "eval:$label" "$bin" eval --raw_path "$raw" --input_path "$dir/wm.ply" --workspace_path "$scene" \
-      --downscale "$ds" --decoder "$decoder" --message "$msg" --views test \
+      --downscale "$ds" --decoder "$decoder" --message "$msg" --split test \
       --attacks identity,gn:0.01,dropout:0.1,crop:0.1 --image_attacks '' --lpips_weights '' \
       --attack_draws "$draws" \
       --output_path "$dir/table1" > "$dir/table1.txt" 2>&1

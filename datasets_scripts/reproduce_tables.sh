@@ -255,7 +255,7 @@ embed_run() {
     "$bin" embed --input_path "$raw_dir/point_cloud.ply" --workspace_path "$workspace" --downscale "$ds" \
     --decoder "$decoder" --message "$message" --output_path "$run_dir/watermarked.ply" \
     --iterations "$embed_iterations" --gamma "$gamma" --mask "$mask" --distortions "$distortions" \
-    --crop_size "$crop_size" --seed "$seed" --num_threads "$num_threads" --eval --reading blind $embed_args
+    --crop_size "$crop_size" --seed "$seed" --num_threads "$num_threads" --split train --reading blind $embed_args
   run_step "$run_dir/eval.seconds" "$run_dir/eval.stdout" "eval $what" \
     "$bin" eval --raw_path "$raw_dir/point_cloud.ply" --input_path "$run_dir/watermarked.ply" \
     --workspace_path "$workspace" --downscale "$ds" --decoder "$decoder" --message "$message" \
@@ -300,7 +300,7 @@ scene_steps() {
   [ "$step_mode" = check ] || log "scene $dataset/$label ($workspace, downscale $ds, gamma $gamma)"
   run_step "$raw_dir/train.seconds" "$raw_dir/train.stdout" "train $dataset/$label ($train_iterations it)" \
     "$bin" train --workspace_path "$workspace" --output_path "$raw_dir" --downscale "$ds" \
-    --iterations "$train_iterations" --seed 0 --num_threads "$num_threads" --eval
+    --iterations "$train_iterations" --seed 0 --num_threads "$num_threads" --split train
   settings_dir="$raw_dir/embed_it${embed_iterations}_crop${crop_size}_gamma$gamma"
   for seed in "${seeds[@]}"; do
     # (a) robustness, (b) DL ablation "with", (d) the main length: ALL, with distortion layers.

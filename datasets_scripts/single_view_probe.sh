@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One point of a single-view curve (docs/history.md, "One view is enough"): embeds a trained
-# model with --eval and the given options, then reads the 6 held-out views and FREE_VIEWS (48)
+# model with --split train and the given options, then reads the 6 held-out views and FREE_VIEWS (48)
 # free viewpoints one by one, blind and as the owner (extract --raw_path), and the held-out PSNR against
 # the photos and against the raw model's renders. Appends one line to OUT/results.txt:
 #   LABEL held MEAN% p90 P90% agg ERRORS [per-view errors] | free ... | owner: held ... | free ...
@@ -23,12 +23,12 @@ free_views="${FREE_VIEWS:-48}"
 msg=text:WGS-26
 if [ ! -f "$raw" ]; then
   "$bin" train --workspace_path "$scene" --output_path "$(dirname "$raw")" --downscale "$ds" \
-    --iterations 2000 --densify_until_iter 1000 --eval --test_iterations 2000 > "$out/raw.log"
+    --iterations 2000 --densify_until_iter 1000 --split train --test_iterations 2000 > "$out/raw.log"
 fi
 run="$out/runs/$label"; mkdir -p "$run"
 t0=$SECONDS
 "$bin" embed --input_path "$raw" --workspace_path "$scene" --downscale "$ds" --decoder "$decoder" \
-  --message "$msg" --output_path "$run/wm.ply" --eval "$@" > "$run/embed.log" 2>&1
+  --message "$msg" --output_path "$run/wm.ply" --split train "$@" > "$run/embed.log" 2>&1
 seconds=$((SECONDS - t0))
 read_views() {  # NAME [extract options]
   local name=$1; shift

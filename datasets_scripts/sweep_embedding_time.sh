@@ -28,7 +28,7 @@ Options:
   --binary PATH         watergs executable (default build/plugin/watergs)
   --out DIR             output folder (default results/accuracy_vs_time/embedding)
   --downscale D         image downscale for train, embed and eval (default 4)
-  --raw_path PLY        raw model to watermark; default: train one with --eval
+  --raw_path PLY        raw model to watermark; default: train one with --split train
   --raw_iterations N    iterations of that raw model (default 2000)
   --decoders LIST       decoders L:PATH,... by message length L (bits); each length is a
                         grid axis value (default 48:watermark/models/decoder_48.bin)
@@ -127,7 +127,7 @@ if [ -z "$raw_path" ]; then
   raw_dir="$out/raw"
   rm -rf "$raw_dir.partial"
   cmd=(nice -n 10 "$binary" train --device cpu --workspace_path "$workspace" --output_path "$raw_dir.partial"
-    --downscale "$downscale" --iterations "$raw_iterations" --eval
+    --downscale "$downscale" --iterations "$raw_iterations" --split train
     --test_iterations "$raw_iterations" --num_threads "$threads" --seed "$seed")
   echo "${cmd[*]}" | sed -e "s#$raw_dir.partial#$raw_dir#" | rel >>"$commands"
   echo "sweep_embedding_time: training the raw model ($(date -u +%T))" >&2
@@ -159,7 +159,7 @@ for len in "${lengths[@]}"; do
         cmd=(nice -n 10 "$binary" embed --device cpu --input_path "$raw_path" --workspace_path "$workspace"
           --downscale "$downscale" --decoder "$dec" --message "$message" --output_path "$tmp_wm"
           --iterations "$iters" --crop_size "$crop" --distortions "$dist_arg"
-          --num_threads "$threads" --seed "$seed" --eval --reading blind)
+          --num_threads "$threads" --seed "$seed" --split train --reading blind)
         # shellcheck disable=SC2206  # word-split on purpose
         [ -z "$embed_args" ] || cmd+=($embed_args)
         echo "${cmd[*]}" | sed -e "s#$tmp_wm#$wm#" | rel >>"$commands"

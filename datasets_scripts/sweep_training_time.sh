@@ -8,7 +8,7 @@ usage() {
   cat <<'EOF'
 Usage: datasets_scripts/sweep_training_time.sh [options]
 
-Trains a workspace once per grid setting (watergs train --eval, every 8th view held out) and
+Trains a workspace once per grid setting (watergs train --split train, every 8th view held out) and
 writes, under OUT:
   training.csv   setting, downscale, max_iterations, densify_until_iter, iteration,
                  train_seconds (training steps only), test_psnr, test_ssim, num_gaussians,
@@ -98,7 +98,7 @@ for s in "${settings[@]}"; do
   tests=$(seq -s, "$test_every" "$test_every" "$iters")
   case ",$tests," in *",$iters,"*) ;; *) tests="$tests,$iters" ;; esac
   cmd=(nice -n 10 "$binary" train --device cpu --workspace_path "$workspace" --output_path "$run.partial"
-    --downscale "$ds" --iterations "$iters" --eval --test_iterations "$tests"
+    --downscale "$ds" --iterations "$iters" --split train --test_iterations "$tests"
     --num_threads "$threads" --seed "$seed" --densify_until_iter "$until" --log_every 50)
   echo "${cmd[*]}" | sed -e "s#$run.partial#$run#" -e "s#$root/##g" >>"$commands"
   echo "sweep_training_time: $name ($(date -u +%T))" >&2

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A splat trained by another trainer, watermarked and read as a user would:
 #   third_party_splat.sh SPLAT.ply WORKSPACE OUT [DOWNSCALE] [SEED]
-# embed with nothing but the message (the shipped decoder, --eval: every 8th view held out of
+# embed with nothing but the message (the shipped decoder, --split train: every 8th view held out of
 # the embedding), then the owner's reading of each held-out view alone (extract --raw_path
 # --split test), eval's held-out PSNR against the photos and against the splat's own renders,
 # and the same splat taken as it is (--align off) for the "before" figure. Every command and
@@ -29,7 +29,7 @@ wm="$out/watermarked_s$seed.ply"
 common=(--workspace_path "$ws" --downscale "$downscale")
 if [ ! -f "$wm" ]; then
   run "embed_s$seed" embed --input_path "$splat" "${common[@]}" --message "$message" \
-    --output_path "$wm" --eval --seed "$seed" --checkpoint_every 250 \
+    --output_path "$wm" --split train --seed "$seed" --checkpoint_every 250 \
     $( [ -f "$wm.ckpt" ] && echo --resume )
 fi
 run "extract_owner_s$seed" extract --input_path "$wm" --raw_path "$splat" "${common[@]}" \

@@ -37,6 +37,19 @@ std::string Message(po::error& error) {
   return error.what();
 }
 
+// The words a boolean option takes (Boost's bool validator's).
+bool IsBoolWord(const std::string& word) {
+  for (const char* w : {"0", "1", "true", "false", "yes", "no", "on", "off"}) {
+    if (word == w) return true;
+  }
+  return false;
+}
+
+bool TrueWord(const std::string& word) {
+  return word == "1" || word == "true" || word == "yes" || word == "on" ||
+         word.empty();
+}
+
 }  // namespace
 
 OptionParser::OptionParser(std::string command, std::string summary)
@@ -68,25 +81,74 @@ void OptionParser::AddAlias(const std::string& alias, const std::string& name) {
   aliases_[alias] = name;
 }
 
-std::vector<std::string> OptionParser::ResolveAliases(int argc,
-                                                      char** argv) const {
-  std::vector<std::string> args(argv, argv + argc);
-  for (size_t k = 1; k < args.size(); ++k) {
-    for (const auto& [alias, name] : aliases_) {
-      const std::string token = "--" + alias;
-      if (args[k] == token) {
-        args[k] = "--" + name;
-      } else if (args[k].rfind(token + "=", 0) == 0) {
-        args[k] = "--" + name + args[k].substr(token.size());
-      }
+void OptionParser::AddAlias(const std::string& alias, const std::string& name,
+                            const std::string& value) {
+  aliases_[alias] = name;
+  alias_values_[alias] = value;
+}
+
+std::string OptionParser::Replacement(const std::string& alias) const {
+  const auto value = alias_values_.find(alias);
+  return "--" + aliases_.at(alias) +
+         (value == alias_values_.end() ? "" : " " + value->second);
+}
+
+std::vector<std::string> OptionParser::ResolveAliases(
+    int argc, char** argv, std::set<std::string>* used) const {
+  std::vector<std::string> out;
+  if (argc > 0) out.push_back(argv[0]);
+  for (int k = 1; k < argc; ++k) {
+    std::string token = argv[k];
+    const bool next_is_bool = k + 1 < argc && IsBoolWord(argv[k + 1]);
+    if (token.rfind("--", 0) != 0) {
+      out.push_back(token);
+      continue;
     }
+    const size_t equals = token.find('=');
+    std::string key = token.substr(
+        2, equals == std::string::npos ? std::string::npos : equals - 2);
+    const auto alias = aliases_.find(key);
+    if (alias != aliases_.end()) {
+      used->insert(key);
+      const auto value = alias_values_.find(key);
+      if (value != alias_values_.end()) {
+        // A boolean alias: `--alias [0|1]` or `--alias=0|1`.
+        bool on = true;
+        if (equals != std::string::npos) {
+          if (!IsBoolWord(token.substr(equals + 1))) {
+            throw po::invalid_option_value(token);
+          }
+          on = TrueWord(token.substr(equals + 1));
+        } else if (next_is_bool) {
+          on = TrueWord(argv[++k]);
+        }
+        if (on) {
+          out.push_back("--" + alias->second);
+          out.push_back(value->second);
+        }
+        continue;
+      }
+      key = alias->second;
+      token = "--" + key +
+              (equals == std::string::npos ? "" : token.substr(equals));
+    }
+    if (equals == std::string::npos && flags_.count(key) && next_is_bool) {
+      token += "=" + std::string(argv[++k]);
+    }
+    out.push_back(token);
   }
-  return args;
+  return out;
 }
 
 void OptionParser::AddFlag(const std::string& name, bool* value,
                            const std::string& help) {
-  options_.add_options()(name.c_str(), po::bool_switch(value), help.c_str());
+  flags_.insert(name);
+  options_.add_options()(name.c_str(),
+                         po::value<bool>(value)
+                             ->default_value(*value)
+                             ->implicit_value(true)
+                             ->value_name("0|1"),
+                         help.c_str());
 }
 
 std::string OptionParser::Help() const {
@@ -96,7 +158,7 @@ std::string OptionParser::Help() const {
       << options_;
   if (!aliases_.empty()) out << "\nAliases:\n";
   for (const auto& [alias, name] : aliases_) {
-    out << "  --" << alias << " = --" << name << "\n";
+    out << "  --" << alias << " = " << Replacement(alias) << " (deprecated)\n";
   }
   return out.str();
 }
@@ -104,7 +166,8 @@ std::string OptionParser::Help() const {
 bool OptionParser::Parse(int argc, char** argv) {
   po::variables_map vm;
   try {
-    const std::vector<std::string> args = ResolveAliases(argc, argv);
+    std::set<std::string> used;
+    const std::vector<std::string> args = ResolveAliases(argc, argv, &used);
     po::store(po::command_line_parser(
                   std::vector<std::string>(args.begin() + 1, args.end()))
                   .options(options_)
@@ -132,7 +195,17 @@ bool OptionParser::Parse(int argc, char** argv) {
           const size_t after =
               line.find_first_not_of(" \t", start + alias.size());
           if (after != std::string::npos && line[after] == '=') {
-            line.replace(start, alias.size(), name);
+            used.insert(alias);
+            const auto value = alias_values_.find(alias);
+            if (value == alias_values_.end()) {
+              line.replace(start, alias.size(), name);
+            } else {
+              // A boolean alias: `alias = 1` is `name = value`.
+              std::string word = line.substr(after + 1);
+              word.erase(0, word.find_first_not_of(" \t"));
+              word.erase(word.find_last_not_of(" \t\r") + 1);
+              line = TrueWord(word) ? name + " = " + value->second : "";
+            }
             break;
           }
         }
@@ -147,6 +220,12 @@ bool OptionParser::Parse(int argc, char** argv) {
       }
     }
     po::notify(vm);
+    // One line per deprecated name used, once the options parsed (an
+    // error stays one line).
+    for (const std::string& alias : used) {
+      std::cerr << "notice: --" << alias << " is deprecated for " << command_
+                << "; use " << Replacement(alias) << "\n";
+    }
     for (const auto& [name, value] : vm) {
       if (!value.defaulted()) given_.insert(name);
     }

@@ -23,7 +23,9 @@ class OptionParser {
   // default as written (0.3, not Boost's 0.29999999999999999).
   template <typename T>
   void Add(const std::string& name, T* value, const std::string& help) {
-    if constexpr (std::is_floating_point_v<T>) {
+    if constexpr (std::is_same_v<T, bool>) {
+      AddFlag(name, value, help);  // one boolean style (AddFlag)
+    } else if constexpr (std::is_floating_point_v<T>) {
       options_.add_options()(
           name.c_str(),
           boost::program_options::value<T>(value)->default_value(
@@ -43,13 +45,23 @@ class OptionParser {
                            boost::program_options::value<T>(value)->required(),
                            help.c_str());
   }
-  // Registers a flag that is true when present.
+  // Registers a boolean, *value its default. Every boolean of every command
+  // takes the same forms: `--name` alone sets it, `--name 0|1` (or
+  // `=0|1`, true/false, yes/no, on/off) sets it either way, `name = 0|1` in
+  // a project file. Add<bool> registers through here.
   void AddFlag(const std::string& name, bool* value, const std::string& help);
 
   // Accepts `--alias` (on the command line and in the project file) as
-  // another name of the registered option `name`, e.g. an option's name
-  // before it was unified across commands. Help lists it.
+  // another name of the registered option `name`: an option's name before
+  // it was unified across commands (docs/cli.md, "Option names"). Using it
+  // prints one line on stderr, once a parse: "notice: --ALIAS is deprecated
+  // for COMMAND; use --NAME". Help lists it.
   void AddAlias(const std::string& alias, const std::string& name);
+  // Accepts the boolean `--alias` (`--alias`, `--alias 1`, `alias = 1`) as
+  // `--name value`, e.g. train's `--eval` as `--split train`; `--alias 0`
+  // leaves `name` alone. Deprecated as above ("...; use --name value").
+  void AddAlias(const std::string& alias, const std::string& name,
+                const std::string& value);
 
   // Whether option `name` was given (on the command line or in the project
   // file) rather than left at its default; valid after Parse.
@@ -72,13 +84,22 @@ class OptionParser {
   static std::string ShortestText(double value);
   static std::string ShortestText(float value);
 
-  // `--alias` tokens of argv rewritten to their option's name.
-  std::vector<std::string> ResolveAliases(int argc, char** argv) const;
+  // argv with `--alias` tokens rewritten to their option's name (adding
+  // the names of the aliases used to `used`) and `--boolean 0|1` joined
+  // into `--boolean=0|1`.
+  std::vector<std::string> ResolveAliases(int argc, char** argv,
+                                          std::set<std::string>* used) const;
+  // The `--name` (`--name value`) an alias stands for.
+  std::string Replacement(const std::string& alias) const;
 
   std::string command_;
   std::string summary_;
-  // alias -> option name.
+  // alias -> option name, and the value of aliases that stand for
+  // `--name value`.
   std::map<std::string, std::string> aliases_;
+  std::map<std::string, std::string> alias_values_;
+  // The booleans (AddFlag).
+  std::set<std::string> flags_;
   // Options given explicitly, filled by Parse.
   std::set<std::string> given_;
   boost::program_options::options_description options_;

@@ -98,9 +98,9 @@ stage_parity() {
 stage_demo() {
   local rc=0 sc=datasets_scripts/demo_scene dec=watermark/models/decoder_48.bin o="$tmp/demo"
   { step 150 train "$W" train --device cuda --workspace_path $sc --output_path "$o/train" --downscale 2 \
-      --iterations 2000 --densify_until_iter 1000 --eval --test_iterations 2000 || rc=1
+      --iterations 2000 --densify_until_iter 1000 --split train --test_iterations 2000 || rc=1
     step 150 embed "$W" embed --device cuda --input_path "$o/train/point_cloud.ply" --workspace_path $sc \
-      --downscale 2 --decoder $dec --message text:WGS-26 --output_path "$o/wm.ply" --eval || rc=1
+      --downscale 2 --decoder $dec --message text:WGS-26 --output_path "$o/wm.ply" --split train || rc=1
     step 40 "extract point_cloud.ply" "$W" extract --device cuda --input_path "$o/train/point_cloud.ply" \
       --workspace_path $sc --downscale 2 --decoder $dec --message text:WGS-26 || rc=1
     # Read blind and as the owner (embed's default reading since issue 36).

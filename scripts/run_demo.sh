@@ -24,21 +24,21 @@ mkdir -p "$out"
 run() { echo "+ watergs $*"; "$bin" "$@"; }
 start=$SECONDS
 
-run model_info --input_path "$scene/sparse/0"
+run model_info --sparse_path "$scene/sparse/0"
 
 # Densification stops at half the run: this 240x180 scene needs ~40k
 # Gaussians, and Inria's schedule (until 15k) is made for 30k iterations.
 run train --workspace_path "$scene" --output_path "$out/train" --downscale 2 \
   --iterations "$train_iters" --densify_until_iter $((train_iters / 2)) \
-  --eval --test_iterations "$train_iters"
+  --split train --test_iterations "$train_iters"
 raw="$out/train/point_cloud.ply"
 
 # embed's defaults (whole frames, half of the iterations from free
-# viewpoints, a logit margin, no density control): --eval only holds out
+# viewpoints, a logit margin, no density control): --split train only holds out
 # every 8th view so that the held-out rows below read views it never saw.
 run embed --input_path "$raw" --workspace_path "$scene" --downscale 2 \
   --decoder "$decoder" --message "$message" --output_path "$out/wm.ply" \
-  --iterations "$embed_iters" --eval
+  --iterations "$embed_iters" --split train
 
 for attack in gn:0.01 dropout:0.1 crop:0.1; do
   run attack --input_path "$out/wm.ply" --attack "$attack" \

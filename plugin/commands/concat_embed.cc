@@ -38,7 +38,9 @@ struct ConcatArgs {
   std::string background = "0,0,0";
   int64_t seed = 0;
   int num_threads = 0;
-  // Hold out every 8th view, as train --eval, so eval scores unseen views.
+  // --split: all, or train (every 8th view held out, so that eval scores
+  // unseen views); eval: split == "train".
+  std::string split = "all";
   bool eval = false;
 };
 
@@ -103,10 +105,11 @@ void AddOptions(OptionParser* parser, ConcatArgs* a) {
   parser->Add("background", &a->background, "r,g,b, black or white");
   parser->Add("seed", &a->seed, "Random seed");
   parser->Add("num_threads", &a->num_threads, "Threads (0 = all cores)");
-  parser->AddFlag("eval", &a->eval,
-                  "Train on the training views only, holding out every 8th "
-                  "view as train --eval does (so that eval scores unseen "
-                  "views)");
+  parser->Add("split", &a->split,
+              "Views to train on: all, or train (all but every 8th view, as "
+              "train --split train holds out, so that eval scores unseen "
+              "views)");
+  parser->AddAlias("eval", "split", "train");
 }
 
 int RunConcatEmbed(int argc, char** argv) {
@@ -117,6 +120,10 @@ int RunConcatEmbed(int argc, char** argv) {
                       "writes the model encoded with the message.");
   AddOptions(&parser, &a);
   if (!parser.Parse(argc, argv)) return 0;
+  if (a.split != "all" && a.split != "train") {
+    Fail("concat_embed: --split all or train, not '" + a.split + "'");
+  }
+  a.eval = a.split == "train";
   Validate(a);
   if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
   ConcatTrainOptions options;

@@ -92,7 +92,9 @@ struct EmbedArgs {
   int num_threads = 0;
   int64_t checkpoint_every = 0;
   bool resume = false;
-  // Hold out every 8th view, as train --eval, so eval scores unseen views.
+  // --split: all, or train (every 8th view held out, so that eval scores
+  // unseen views); eval: split == "train".
+  std::string split = "all";
   bool eval = false;
 };
 
@@ -394,11 +396,16 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("report", &a.report_path,
              "Also write the ownership report (HTML, see watergs report) of "
              "the written model on all cameras to this file");
-  parser.AddFlag(
-      "eval", &a.eval,
-      "Fine-tune on the training views only, holding out every 8th "
-      "view as train --eval does (so that eval scores unseen views)");
+  parser.Add("split", &a.split,
+             "Views to fine-tune on: all, or train (all but every 8th view, "
+             "as train --split train holds out, so that eval scores unseen "
+             "views)");
+  parser.AddAlias("eval", "split", "train");
   if (!parser.Parse(argc, argv)) return 0;
+  if (a.split != "all" && a.split != "train") {
+    Fail("embed: --split all or train, not '" + a.split + "'");
+  }
+  a.eval = a.split == "train";
   if (a.reading == "blind") {
     // The blind reading's own defaults (docs/history.md, "One view is
     // enough"): it must overcome the scene's lean per bit, so a wider margin,

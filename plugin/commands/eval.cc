@@ -36,11 +36,13 @@ std::vector<size_t> SelectViews(const Workspace& workspace,
   std::vector<size_t> views;
   if (which == "test") {
     views = workspace.TestViews(true);
+  } else if (which == "train") {
+    views = workspace.TrainViews(true);
   } else if (which == "all") {
     views = workspace.TestViews(false);
     if (views.empty()) views = workspace.TrainViews(false);
   } else {
-    Fail("eval: --views must be 'test' or 'all', not '" + which + "'");
+    Fail("eval: --split must be test, train or all, not '" + which + "'");
   }
   if (max_views > 0 && size_t(max_views) < views.size()) {
     std::vector<size_t> spread;
@@ -93,7 +95,8 @@ int RunEval(int argc, char** argv) {
   OptionParser parser(
       "eval",
       "Evaluates a watermarked 3DGS model against its raw original on the "
-      "workspace's held-out views (every 8th image, as train --eval): PSNR, "
+      "workspace's held-out views (every 8th image, as train --split train "
+      "holds out): PSNR, "
       "SSIM, MS-SSIM and VGG-LPIPS against ground truth and against the raw "
       "renders; BER, p-value and verdict under each model attack and each "
       "attack on the renders. Prints a Markdown table; --output_path P "
@@ -129,7 +132,10 @@ int RunEval(int argc, char** argv) {
              "'' to skip. The default is relative to the current folder and "
              "LPIPS is skipped (said once) if it is missing there; a path "
              "given that does not exist is an error");
-  parser.Add("views", &which_views, "test (every 8th) or all");
+  parser.Add("split", &which_views,
+             "Views to evaluate: test (every 8th, the views train and embed "
+             "--split train hold out), train (the others) or all");
+  parser.AddAlias("views", "split");
   parser.Add("max_views", &max_views,
              "Evaluate at most this many views, spread evenly (0 = all)");
   parser.Add("false_positive_rate", &present_p,

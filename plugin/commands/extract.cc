@@ -105,7 +105,8 @@ int RunExtract(int argc, char** argv) {
       "Use at most this many workspace cameras, spread evenly (0 = all)");
   parser.Add("split", &split,
              "Workspace cameras to render: all, train or test (test: every "
-             "8th, the views train --eval and embed --eval hold out)");
+             "8th, the views train --split train and embed --split train hold "
+             "out)");
   parser.Add("false_positive_rate", &present_p,
              "p-value at or below which the watermark is declared present");
   parser.Add("background", &background, "r,g,b, black or white");

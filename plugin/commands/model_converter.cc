@@ -17,8 +17,12 @@ int RunModelConverter(int argc, char** argv) {
       "model_converter",
       "Converts a COLMAP sparse model to BIN or TXT (as colmap "
       "model_converter).");
-  parser.AddRequired("input_path", &input_path,
+  // colmap model_converter calls it --input_path; here --input_path is
+  // always a 3DGS model (docs/cli.md, "Option names"), the old name an
+  // alias.
+  parser.AddRequired("sparse_path", &input_path,
                      "Sparse model folder, or a workspace holding sparse/0");
+  parser.AddAlias("input_path", "sparse_path");
   parser.AddRequired("output_path", &output_path,
                      "Folder to write cameras/images/points3D into");
   parser.AddRequired("output_type", &output_type, "BIN or TXT");
@@ -29,7 +33,7 @@ int RunModelConverter(int argc, char** argv) {
   const std::string model_path = watergs::FindModelPath(input_path);
   if (watergs::SamePath(model_path, output_path)) {
     watergs::FailAt(output_path,
-                    "holds the input model (--input_path " + input_path +
+                    "holds the input model (--sparse_path " + input_path +
                         "): write the converted model to another folder");
   }
   const watergs::Reconstruction reconstruction =

@@ -19,8 +19,9 @@ int RunModelInfo(int argc, char** argv) {
       "model_info",
       "Prints the summary of a COLMAP sparse model, as "
       "`colmap model_analyzer` does.");
-  parser.AddRequired("input_path", &input_path,
+  parser.AddRequired("sparse_path", &input_path,
                      "Sparse model folder, or a workspace holding sparse/0");
+  parser.AddAlias("input_path", "sparse_path");
   parser.Add("reference_path", &reference_path,
              "A model of the same photos (e.g. from known poses), or an LLFF "
              "poses_bounds.npy (rows named by the sorted images/ beside it): "

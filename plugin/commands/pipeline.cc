@@ -78,14 +78,15 @@ std::vector<StageArgs> PipelineStages(const PipelineArgs& a,
       {"reconstruct", "--image_path",
        reconstruct ? fs::absolute(a.image_path).string() : "",
        "--workspace_path", ws, "--num_threads", threads},
-      {"train", "--output_path", (out / "train").string(), "--eval",
+      {"train", "--output_path", (out / "train").string(), "--split", "train",
        "--iterations", std::to_string(a.iterations), "--test_iterations",
        std::to_string(a.iterations), "--densify_until_iter",
        std::to_string(a.iterations / 2), "--checkpoint_every", "500"},
       {"embed", "--input_path", (out / "train" / "point_cloud.ply").string(),
        "--decoder", a.decoder, "--message", a.message, "--output_path",
-       (out / "watermarked.ply").string(), "--eval", "--checkpoint_every",
-       "250", "--report", (out / "report.html").string()}};
+       (out / "watermarked.ply").string(), "--split", "train",
+       "--checkpoint_every", "250", "--report",
+       (out / "report.html").string()}};
   if (!a.key.empty()) stages[2].insert(stages[2].end(), {"--key", a.key});
   if (!a.device.empty()) {
     for (size_t k = 1; k < 3; ++k) {

@@ -177,7 +177,9 @@ int RunPlyInfo(int argc, char** argv) {
       "Prints a 3DGS model's format, Gaussian count, SH degree, layout, "
       "attribute ranges and NaN/Inf count (PLY, compressed PLY, .spz, "
       ".splat or SOG, told by content).");
-  parser.AddRequired("input_path", &input_path, "The model file");
+  parser.AddRequired(
+      "input_path", &input_path,
+      "The model file (PLY, compressed PLY, .spz, .splat or SOG)");
   if (!parser.Parse(argc, argv)) return 0;
   watergs::PlyReadOptions options;
   options.allow_non_finite = true;  // report them instead of refusing

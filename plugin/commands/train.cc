@@ -57,6 +57,9 @@ struct TrainArgs {
   int num_threads = 0;
   // Where the rasterizer ran ("cpu" or "cuda"), for the report.
   std::string device = "cpu";
+  // --split: all, or train (every 8th view held out, so that eval scores
+  // unseen views); eval: split == "train".
+  std::string split = "all";
   bool eval = false;
   int64_t checkpoint_every = 0;
   bool resume = false;
@@ -214,14 +217,18 @@ int RunTrain(int argc, char** argv) {
   parser.Add("num_threads", &a.num_threads,
              "Threads (0 = all cores); results are reproducible for a given "
              "seed and thread count");
-  parser.AddFlag("eval", &a.eval,
-                 "Hold out every 8th view (LLFF/Mip-NeRF 360) for metrics");
+  parser.Add("split", &a.split,
+             "Views to train on: all, or train (all but every 8th view, the "
+             "LLFF/Mip-NeRF 360 hold-out, whose PSNR is logged: Inria's "
+             "--eval)");
+  parser.AddAlias("eval", "split", "train");
   parser.Add("checkpoint_every", &a.checkpoint_every,
              "Write OUT/checkpoint.ckpt every N iterations (0 = never)");
   parser.AddFlag("resume", &a.resume,
                  "Continue from OUT/checkpoint.ckpt (same options)");
   parser.Add("test_iterations", &a.test_iterations,
-             "Iterations at which held-out PSNR is logged (with --eval)");
+             "Iterations at which held-out PSNR is logged (with --split "
+             "train)");
   parser.Add("log_every", &a.log_every, "Write a log line every N iterations");
   parser.Add("densify_from_iter", &a.densify_from_iter,
              "First iteration of adaptive density control (Inria: 500)");
@@ -238,6 +245,10 @@ int RunTrain(int argc, char** argv) {
       "bfloat16 with stochastic rounding (571 bytes; see docs/benchmarks.md "
       "for its quality)");
   if (!parser.Parse(argc, argv)) return 0;
+  if (a.split != "all" && a.split != "train") {
+    Fail("train: --split all or train, not '" + a.split + "'");
+  }
+  a.eval = a.split == "train";
   a.device = DeviceName(parser.device());
   Validate(a);
   if (a.num_threads > 0) omp_set_num_threads(a.num_threads);
@@ -338,8 +349,8 @@ int RunTrain(int argc, char** argv) {
                   : 0.0,
               trainer.model().size());
   std::printf("train: %s views (%zu): PSNR %.2f dB  SSIM %.4f  L1 %.4f\n",
-              held_out ? "held-out" : "training (no --eval)", eval.num_views,
-              eval.psnr, eval.ssim, eval.l1);
+              held_out ? "held-out" : "training (no --split train)",
+              eval.num_views, eval.psnr, eval.ssim, eval.l1);
   std::printf(
       "train: wrote %s/{point_cloud.ply, cameras.json, train_log.jsonl, "
       "report.json}\n",

@@ -94,7 +94,7 @@ def _callback(progress):
 
 def run(command, *, progress=None, quiet=False, **options):
     """Runs any CLI command in this process: ``run("model_info",
-    input_path="scene/sparse/0")`` is ``watergs model_info --input_path
+    sparse_path="scene/sparse/0")`` is ``watergs model_info --sparse_path
     scene/sparse/0``. Prints what the CLI prints (quiet=True: nothing);
     `progress(watergs.Progress)` is called at each step of its progress
     line. Raises watergs.Error with the CLI's one-line message for bad
@@ -151,7 +151,7 @@ class _Result:
 class TrainResult(_Result):
     """A finished `train` run. output_path: the run's folder; ply_path: its
     point_cloud.ply; report: report.json as a dict; psnr, ssim, l1 on the
-    held-out views (on the training views without eval=True);
+    held-out views (on the training views without split="train");
     num_gaussians, iterations, seconds."""
 
     def __init__(self, output_path):

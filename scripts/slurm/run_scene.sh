@@ -137,7 +137,7 @@ if [ -z "$ply" ]; then
   elif [ -d "$dir/train" ]; then
     iters+=(--overwrite)
   fi
-  step train "$bin" train --workspace_path "$workspace" --output_path "$dir/train" --seed "$seed" --eval \
+  step train "$bin" train --workspace_path "$workspace" --output_path "$dir/train" --seed "$seed" --split train \
     "${iters[@]}" "${common[@]}" "${train_args[@]}"
   raw="$dir/train/point_cloud.ply"
 fi
@@ -147,7 +147,7 @@ iters=(--checkpoint_every "$checkpoint_every")
 # The blind reading, as eval's summary columns (and the paper's tables) read it; --embed_args
 # "--reading owner" embeds for the owner's reading instead.
 step embed "$bin" embed --input_path "$raw" --workspace_path "$workspace" --decoder "$decoder" \
-  --message "$message" --output_path "$dir/watermarked.ply" --seed "$seed" --eval --reading blind "${iters[@]}" \
+  --message "$message" --output_path "$dir/watermarked.ply" --seed "$seed" --split train --reading blind "${iters[@]}" \
   "${common[@]}" "${embed_args[@]}"
 rm -f "$dir/watermarked.ply.ckpt"  # the finished embedding's state (three times the PLY): done with it
 step eval "$bin" eval --raw_path "$raw" --input_path "$dir/watermarked.ply" --workspace_path "$workspace" \

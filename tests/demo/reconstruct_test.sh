@@ -41,7 +41,7 @@ awk -v e="$error" 'BEGIN { exit !(e > 0 && e < 1.0) }' || fail "mean reprojectio
 grep -q "matcher exhaustive" "$out/run1.log" || fail "48 photos not matched exhaustively"
 # Placed right: every camera centre within 2% of the capture's size of the true one (the POV-Ray
 # cameras the photos were rendered from, demo_scene/ground_truth; sparse/0 is itself a mapper run).
-"$bin" model_info --input_path "$ws" --reference_path "$root/datasets_scripts/demo_scene/ground_truth" \
+"$bin" model_info --sparse_path "$ws" --reference_path "$root/datasets_scripts/demo_scene/ground_truth" \
   > "$out/poses.log" || fail "model_info: $(cat "$out/poses.log")"
 poses=$(grep "Poses against the reference" "$out/poses.log") || fail "no pose comparison"
 echo "$poses"

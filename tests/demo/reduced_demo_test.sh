@@ -43,7 +43,7 @@ common=(--workspace_path "$scene" --downscale 4 --device cpu)
 fail() { echo "reduced_demo_test: FAIL: $*" >&2; exit 1; }
 
 # The second raw model trains on the other core meanwhile.
-train_args=(--iterations 2000 --densify_until_iter 1000 --eval --test_iterations 2000 --num_threads 1)
+train_args=(--iterations 2000 --densify_until_iter 1000 --split train --test_iterations 2000 --num_threads 1)
 "$bin" train "${common[@]}" --output_path "$out/train2" "${train_args[@]}" --seed 1 > "$out/train2.log" 2>&1 &
 train2=$!
 "$bin" train "${common[@]}" --output_path "$out/train" "${train_args[@]}" > "$out/train.log"
@@ -52,7 +52,7 @@ wait "$train2" || { cat "$out/train2.log"; fail "training the second raw model";
 raw2="$out/train2/point_cloud.ply"
 cmp -s "$raw" "$raw2" && fail "the raw model with --seed 1 is the seed-0 file"
 "$bin" embed --input_path "$raw" "${common[@]}" --decoder "$decoder" --message "$message" \
-  --output_path "$out/wm.ply" --eval --num_threads 1 "${extra[@]}" > "$out/embed.log" 2>&1 || { cat "$out/embed.log"; fail "embed"; }
+  --output_path "$out/wm.ply" --split train --num_threads 1 "${extra[@]}" > "$out/embed.log" 2>&1 || { cat "$out/embed.log"; fail "embed"; }
 count() { "$bin" ply_info --input_path "$1" | awk '/^Gaussians:/ {print $2}'; }
 [ "$(count "$raw")" = "$(count "$out/wm.ply")" ] || fail "embedding changed the Gaussian count"
 

@@ -33,9 +33,9 @@ grep -q "matcher exhaustive: 24 photos, 276 pairs (names in no capture order" "$
   fail "not matched every pair as photos in no order"
 grep -q "a camera per photo" "$out/run.log" || fail "photos in no order share a camera"
 grep -q "24 of 24 photos registered" "$out/run.log" || fail "not every photo registered"
-"$bin" model_info --input_path "$out/ws" > "$out/info.log"
+"$bin" model_info --sparse_path "$out/ws" > "$out/info.log"
 grep -q "^Cameras: 24$" "$out/info.log" || fail "not a camera per photo: $(grep Cameras "$out/info.log")"
-"$bin" model_info --input_path "$out/ws" --reference_path "$out/truth" > "$out/poses.log" ||
+"$bin" model_info --sparse_path "$out/ws" --reference_path "$out/truth" > "$out/poses.log" ||
   fail "model_info: $(cat "$out/poses.log")"
 poses=$(grep "Poses against the reference" "$out/poses.log") || fail "no pose comparison"
 echo "$poses"

@@ -68,7 +68,7 @@ class ColmapCompat : public ::testing::Test {
     WriteReconstruction(testing::MakeSyntheticReconstruction(options), input,
                         format);
     const testing::CommandResult ours = testing::RunCommand(
-        testing::WatergsBin() + " model_info --input_path " + input);
+        testing::WatergsBin() + " model_info --sparse_path " + input);
     const testing::CommandResult theirs =
         testing::RunCommand(Colmap() + " model_analyzer --path " + input);
     ASSERT_EQ(ours.exit_code, 0) << label << ours.output;
@@ -87,7 +87,7 @@ class ColmapCompat : public ::testing::Test {
           " --output_path " + colmap_out + " --output_type " + type);
       ASSERT_EQ(converted.exit_code, 0) << converted.output;
       const testing::CommandResult ours_converted = testing::RunCommand(
-          testing::WatergsBin() + " model_converter --input_path " + input +
+          testing::WatergsBin() + " model_converter --sparse_path " + input +
           " --output_path " + our_out + " --output_type " + type);
       ASSERT_EQ(ours_converted.exit_code, 0) << ours_converted.output;
       for (const char* name : {"cameras", "images", "points3D"}) {
@@ -159,7 +159,7 @@ TEST_F(ColmapCompat, HandWrittenTextConvertsLikeColmap) {
                   .exit_code,
               0);
     ASSERT_EQ(testing::RunCommand(
-                  testing::WatergsBin() + " model_converter --input_path " +
+                  testing::WatergsBin() + " model_converter --sparse_path " +
                   input + " --output_path " + ours + " --output_type " + type)
                   .exit_code,
               0);
@@ -178,7 +178,7 @@ TEST_F(ColmapCompat, ModelInfoStepsIntoWorkspaceSparse0) {
   WriteReconstruction(testing::MakeSyntheticReconstruction(options),
                       dir_ / "ws/sparse/0", ModelFormat::kText);
   const testing::CommandResult ours = testing::RunCommand(
-      testing::WatergsBin() + " model_info --input_path " + dir_ / "ws");
+      testing::WatergsBin() + " model_info --sparse_path " + dir_ / "ws");
   const testing::CommandResult theirs = testing::RunCommand(
       Colmap() + " model_analyzer --path " + dir_ / "ws/sparse/0");
   ASSERT_EQ(ours.exit_code, 0) << ours.output;
@@ -197,7 +197,7 @@ TEST_F(ColmapCompat, DemoSceneWorkspaceMatchesModelAnalyzer) {
                     "make_demo_scene.sh)";
   }
   const testing::CommandResult ours = testing::RunCommand(
-      testing::WatergsBin() + " model_info --input_path " + scene);
+      testing::WatergsBin() + " model_info --sparse_path " + scene);
   const testing::CommandResult theirs = testing::RunCommand(
       Colmap() + " model_analyzer --path " + scene + "/sparse/0");
   ASSERT_EQ(ours.exit_code, 0) << ours.output;

@@ -58,12 +58,13 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
       run.output.substr(checks, run.output.find('\n', checks) - checks);
   EXPECT_NE(checks_line.find(" s, 2 of "), std::string::npos) << checks_line;
   EXPECT_NE(run.output.find(" 6 views "), std::string::npos) << run.output;
-  // --eval holds out every 8th view (here view 0) as train --eval does.
+  // --split train holds out every 8th view (here view 0) as train --split train
+  // does.
   const auto held_out =
       RunCommand(base + " --message hex:a5c3 --output_path " +
                  std::string(dir / "wm_eval.ply") +
                  " --iterations 2 --crop_size 24 --densify off --check_every 2"
-                 " --num_threads 1 --eval");
+                 " --num_threads 1 --split train");
   ASSERT_EQ(held_out.exit_code, 0) << held_out.output;
   EXPECT_NE(held_out.output.find(" 5 views "), std::string::npos)
       << held_out.output;

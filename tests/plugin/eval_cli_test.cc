@@ -164,7 +164,7 @@ TEST(EvalCli, WritesQualityAndRobustnessReports) {
   // The raw model against itself: infinite PSNR is written as null.
   const auto same = RunCommand(base + " --input_path " + s.raw +
                                " --attacks identity --image_attacks '' "
-                               "--views all --output_path " +
+                               "--split all --output_path " +
                                (dir / "same"));
   ASSERT_EQ(same.exit_code, 0) << same.output;
   const auto k = ReadJson(dir / "same.json");
@@ -182,8 +182,8 @@ TEST(EvalCli, WritesQualityAndRobustnessReports) {
                                 " --image_attacks jpeg:0 --output_path " + bad),
                      "jpeg:0");
   ExpectOneLineError(RunCommand(base + " --input_path " + s.wm +
-                                " --views some --output_path " + bad),
-                     "--views");
+                                " --split some --output_path " + bad),
+                     "--split");
   EXPECT_FALSE(std::filesystem::exists(bad + ".json"));
 }
 

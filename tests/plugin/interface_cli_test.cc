@@ -1,5 +1,7 @@
 // CLI tests of the interface the commands share: one --sparse_path option
-// everywhere (train's old --input_path kept as an alias), images optional
+// everywhere (train's old --input_path kept as a deprecated alias), one name
+// per concept on every command (docs/cli.md, "Option names"), old names
+// working with one notice line, images optional
 // where no ground truth is needed, `watergs help <command>`, --version,
 // defaults printed as written, the message formats and their limit, and
 // errors that name the right option or file in readable text.
@@ -7,12 +9,15 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <sstream>
 #include <string>
 
 #include "gaussian/formats/ply_io.h"
 #include "gaussian/util/file_util.h"
+#include "plugin/reconstruction_io.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 #include "synthetic_model.h"
@@ -142,13 +147,17 @@ TEST(InterfaceCli, SparsePathOnEveryCommandThatReadsAWorkspace) {
   const auto by_alias = RunCommand(train + " --input_path=" + model +
                                    " --output_path " + (dir / "t2"));
   EXPECT_EQ(by_alias.exit_code, 0) << by_alias.output;
+  EXPECT_NE(by_alias.output.find("notice: --input_path is deprecated for "
+                                 "train; use --sparse_path\n"),
+            std::string::npos)
+      << by_alias.output;
   const std::string ini = dir / "train.ini";
   AtomicWriteFile(ini, "input_path = " + model + "\n");
   const auto from_ini = RunCommand(train + " --project_path " + ini +
                                    " --output_path " + (dir / "t3"));
   EXPECT_EQ(from_ini.exit_code, 0) << from_ini.output;
   EXPECT_NE(RunCommand(WatergsBin() + " train -h")
-                .output.find("--input_path = --sparse_path"),
+                .output.find("--input_path = --sparse_path (deprecated)"),
             std::string::npos);
   ExpectOneLineError(
       RunCommand(train + " --sparse_path " + model + " --input_path " + model +
@@ -182,6 +191,204 @@ TEST(InterfaceCli, SparsePathOnEveryCommandThatReadsAWorkspace) {
   EXPECT_EQ(concat.exit_code, 0) << concat.output;
 }
 
+// The stderr lines of `command` (its stdout dropped).
+std::vector<std::string> StderrLines(const std::string& command) {
+  const auto run = RunCommand("{ " + command + " 2>&1 >/dev/null; }");
+  std::vector<std::string> lines;
+  std::istringstream in(run.output);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+// An old option name still works and says so in exactly one line naming the
+// new name (once, whether typed or in the project file); the new name, the
+// same command, prints nothing on stderr.
+TEST(InterfaceCli, OldOptionNamesWorkWithOneNoticeNamingTheNewName) {
+  TempDir dir("interface_old_names");
+  const std::string model = dir / "sparse";
+  WriteReconstruction(testing::MakeSyntheticReconstruction({}), model,
+                      ModelFormat::kBinary);
+  const std::string info = WatergsBin() + " model_info";
+  const auto by_new = RunCommand(info + " --sparse_path " + model);
+  ASSERT_EQ(by_new.exit_code, 0) << by_new.output;
+  EXPECT_TRUE(StderrLines(info + " --sparse_path " + model).empty());
+  const auto by_old = RunCommand(info + " --input_path " + model);
+  ASSERT_EQ(by_old.exit_code, 0) << by_old.output;
+  const std::vector<std::string> notice =
+      StderrLines(info + " --input_path " + model);
+  ASSERT_EQ(notice.size(), 1u) << by_old.output;
+  EXPECT_EQ(notice[0],
+            "notice: --input_path is deprecated for model_info; use "
+            "--sparse_path");
+  // The same figures either way, the notice aside.
+  EXPECT_EQ(by_old.output, notice[0] + "\n" + by_new.output);
+  const std::string ini = dir / "info.ini";
+  AtomicWriteFile(ini, "input_path = " + model + "\n");
+  EXPECT_EQ(StderrLines(info + " --project_path " + ini),
+            std::vector<std::string>{notice[0]});
+
+  const std::string convert = WatergsBin() +
+                              " model_converter --output_type TXT "
+                              "--output_path ";
+  EXPECT_TRUE(StderrLines(convert + (dir / "txt1") + " --sparse_path " + model)
+                  .empty());
+  EXPECT_EQ(StderrLines(convert + (dir / "txt2") + " --input_path " + model),
+            std::vector<std::string>{
+                "notice: --input_path is deprecated for model_converter; "
+                "use --sparse_path"});
+  EXPECT_EQ(ReadFileBytes(dir / "txt1/images.txt"),
+            ReadFileBytes(dir / "txt2/images.txt"));
+
+  // A boolean old name standing for a value (train --eval is --split
+  // train): one notice naming both, and the same refusal as the new name.
+  const std::string train = WatergsBin() + " train --workspace_path " +
+                            (dir / "missing") + " --output_path " + (dir / "t");
+  const std::vector<std::string> eval = StderrLines(train + " --eval");
+  ASSERT_EQ(eval.size(), 2u);
+  EXPECT_EQ(eval[0],
+            "notice: --eval is deprecated for train; use --split train");
+  EXPECT_EQ(eval[1], StderrLines(train + " --split train").at(0));
+  EXPECT_EQ(StderrLines(train + " --split train").size(), 1u);
+  ExpectOneLineError(RunCommand(train + " --eval --split all"), "split");
+}
+
+// One option's name, whether it takes a value or is a boolean, and its help
+// text, from a command's -h (options only, not the aliases).
+struct HelpOption {
+  std::string name, syntax, help;
+};
+
+std::vector<HelpOption> HelpOptions(const std::string& help) {
+  std::vector<HelpOption> options;
+  std::istringstream in(help);
+  const std::regex line_re(
+      R"(^  (?:-h \[ )?--([a-z0-9_]+)( \]|\s*\[=[^\]]*\]|\s+arg)?)"
+      R"(\s*(?:\(=[^)]*\))?\s*(.*)$)");
+  bool started = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("Options:", 0) == 0) started = true;
+    if (line.rfind("Aliases:", 0) == 0) break;
+    if (!started) continue;
+    std::smatch m;
+    if (std::regex_match(line, m, line_re)) {
+      options.push_back({m[1], m[2], m[3]});
+    } else if (!options.empty()) {
+      options.back().help += " " + line;
+    }
+  }
+  // Help text as one line, single-spaced.
+  for (HelpOption& o : options) {
+    o.help = std::regex_replace(o.help, std::regex(" +"), " ");
+    o.help = std::regex_replace(o.help, std::regex("^ | $"), "");
+  }
+  return options;
+}
+
+// The names a command's -h breaks the rules of docs/cli.md ("Option names")
+// with, one line each.
+std::vector<std::string> NamingViolations(const std::string& command,
+                                          const std::string& help) {
+  std::vector<std::string> bad;
+  const auto say = [&](const std::string& what) {
+    bad.push_back(command + ": " + what);
+  };
+  for (const HelpOption& o : HelpOptions(help)) {
+    const std::string& n = o.name;
+    // --input_path is a 3DGS model file; a sparse model is --sparse_path.
+    if (n == "input_path" && o.help.find("PLY") == std::string::npos) {
+      say("--input_path is not a model file (PLY ...): " + o.help);
+    }
+    if (o.help.rfind("Sparse model", 0) == 0 && n != "sparse_path") {
+      say("a sparse model as --" + n + " (use --sparse_path)");
+    }
+    // Views: --split, and only --split.
+    for (const char* views :
+         {"views", "eval", "which_views", "test_views", "train_views",
+          "held_out", "holdout", "test_split", "view_split"}) {
+      if (n == views) say("views chosen by --" + n + " (use --split)");
+    }
+    if (n == "split" && o.help.find("train") == std::string::npos) {
+      say("--split does not name its values: " + o.help);
+    }
+    // JSON output: --json.
+    if (n != "json" && (n.find("json") != std::string::npos ||
+                        (std::regex_search(o.help, std::regex("^[Ww]rite")) &&
+                         o.help.find("JSON") != std::string::npos))) {
+      say("JSON written by --" + n + " (use --json)");
+    }
+    // Booleans: one style, `--name [0|1]`.
+    if (n != "help" && o.syntax.empty()) {
+      say("--" + n + " is a bare switch (use AddFlag: --" + n + " [0|1])");
+    }
+    if (o.syntax.find("[=") != std::string::npos &&
+        o.syntax.find("[=0|1(=1)]") == std::string::npos) {
+      say("--" + n + " is a boolean of another style: " + o.syntax);
+    }
+    // The reading: --reading owner|blind.
+    if (n != "reading" && (n.find("reading") != std::string::npos ||
+                           n == "owner" || n == "blind")) {
+      say("the reading chosen by --" + n + " (use --reading)");
+    }
+    if (n == "reading" && (o.help.find("owner") == std::string::npos ||
+                           o.help.find("blind") == std::string::npos)) {
+      say("--reading does not name owner and blind: " + o.help);
+    }
+  }
+  return bad;
+}
+
+// The rules hold on every registered command: --input_path is a model file
+// everywhere, views are chosen by --split, JSON is written by --json, every
+// boolean takes `--name [0|1]`, the reading is --reading. (A command that
+// registers, say, eval's old `--views` again fails here.)
+TEST(InterfaceCli, OptionNamesFollowOneRulePerConcept) {
+  // The checker itself catches each kind of name.
+  EXPECT_EQ(NamingViolations("x",
+                             "Options:\n"
+                             "  --input_path arg      Sparse model folder\n"
+                             "  --views arg (=test)   test or all\n"
+                             "  --report_json arg     JSON here\n"
+                             "  --overwrite           Replace it\n"
+                             "  --owner_reading arg   owner\n")
+                .size(),
+            6u);
+  EXPECT_TRUE(NamingViolations("x",
+                               "Options:\n"
+                               "  -h [ --help ]         Print this help\n"
+                               "  --input_path arg      The model (PLY)\n"
+                               "  --split arg (=all)    all, train or test\n"
+                               "  --json arg            Write JSON here\n"
+                               "  --resume [=0|1(=1)] (=0)\n"
+                               "                        Continue\n"
+                               "  --reading arg         owner or blind\n"
+                               "\nAliases:\n  --eval = --split train\n")
+                  .empty());
+
+  const auto list = RunCommand(WatergsBin() + " help");
+  ASSERT_EQ(list.exit_code, 0) << list.output;
+  std::istringstream lines(list.output.substr(list.output.find("Commands:")));
+  std::string line;
+  std::getline(lines, line);
+  int commands = 0;
+  std::vector<std::string> bad;
+  while (std::getline(lines, line)) {
+    std::istringstream words(line);
+    std::string name;
+    if (!(words >> name)) continue;
+    ++commands;
+    const auto help = RunCommand(WatergsBin() + " " + name + " -h");
+    ASSERT_EQ(help.exit_code, 0) << name << ": " << help.output;
+    EXPECT_GE(HelpOptions(help.output).size(), 4u) << name << help.output;
+    for (const std::string& b : NamingViolations(name, help.output)) {
+      bad.push_back(b);
+    }
+  }
+  EXPECT_GE(commands, 20);
+  std::string all;
+  for (const std::string& b : bad) all += b + "\n";
+  EXPECT_TRUE(bad.empty()) << all;
+}
+
 // Without an image folder, commands that only render cameras (extract,
 // render) or can compare renders with each other (eval) still run; those
 // that fit images (train, embed) say the folder is missing.
@@ -199,7 +406,7 @@ TEST(InterfaceCli, ImagesOptionalWhereNoGroundTruthIsNeeded) {
 
   const auto eval = RunCommand(
       WatergsBin() + " eval --raw_path " + s.ply + common +
-      " --attacks identity --image_attacks '' --lpips_weights '' --views all "
+      " --attacks identity --image_attacks '' --lpips_weights '' --split all "
       "--output_path " +
       (dir / "report"));
   ASSERT_EQ(eval.exit_code, 0) << eval.output;

@@ -131,7 +131,7 @@ TEST(KeyCli, OnlyTheKeyedClaimReadsPresent) {
         " --input_path " + (dir / "wm.ply") + " --workspace_path " +
         wo.workspace_path + " --decoder " + kDecoder + " --message " +
         kMessage + key_option +
-        " --attacks identity --image_attacks '' --lpips_weights '' --views "
+        " --attacks identity --image_attacks '' --lpips_weights '' --split "
         "all --output_path " +
         prefix);
     EXPECT_EQ(run.exit_code, 0) << run.output;

@@ -288,13 +288,14 @@ TEST(MalformedInputCli, TruncatedInputsOfEveryKind) {
   ASSERT_EQ(RunCommand(train).exit_code, 0);
   const std::string model = dir / "model";
   ASSERT_EQ(
-      RunCommand(WatergsBin() + " model_converter --input_path " + ws +
+      RunCommand(WatergsBin() + " model_converter --sparse_path " + ws +
                  "/sparse/0 --output_path " + model + " --output_type BIN")
           .exit_code,
       0);
   WriteHalf(model + "/points3D.bin", ReadFileBytes(model + "/points3D.bin"));
-  ExpectCliError(RunCommand(WatergsBin() + " model_info --input_path " + model),
-                 model + "/points3D.bin: ");
+  ExpectCliError(
+      RunCommand(WatergsBin() + " model_info --sparse_path " + model),
+      model + "/points3D.bin: ");
   const std::string ply = dir / "half.ply";
   WriteHalf(ply, ReadFileBytes(out + "/point_cloud.ply"));
   ExpectCliError(RunCommand(WatergsBin() + " ply_info --input_path " + ply),
@@ -349,7 +350,7 @@ TEST(MalformedInputCli, OutputFolderThatCannotBeCreated) {
                             " --output_path " + blocker +
                             "/out --iterations 2 --num_threads 1"),
                  blocker + "/out");
-  ExpectCliError(RunCommand(WatergsBin() + " model_converter --input_path " +
+  ExpectCliError(RunCommand(WatergsBin() + " model_converter --sparse_path " +
                             ws + "/sparse/0 --output_path " + blocker +
                             "/model --output_type BIN"),
                  blocker + "/model");
@@ -360,7 +361,7 @@ TEST(MalformedInputCli, OutputFolderThatCannotBeCreated) {
     CreateDirectories(locked);
     fs::permissions(locked, fs::perms::owner_read | fs::perms::owner_exec);
     ExpectCliError(
-        RunCommand(WatergsBin() + " model_converter --input_path " + ws +
+        RunCommand(WatergsBin() + " model_converter --sparse_path " + ws +
                    "/sparse/0 --output_path " + locked + " --output_type BIN"),
         locked);
     fs::permissions(locked, fs::perms::owner_all);

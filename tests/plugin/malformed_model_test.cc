@@ -67,7 +67,7 @@ class MalformedModel : public ::testing::Test {
     }
     if (!check_cli) return;
     const testing::CommandResult cli = testing::RunCommand(
-        testing::WatergsBin() + " model_info --input_path " + path);
+        testing::WatergsBin() + " model_info --sparse_path " + path);
     EXPECT_EQ(cli.exit_code, 1) << cli.output;
     EXPECT_EQ(cli.output.rfind("error: ", 0), 0u) << cli.output;
     EXPECT_NE(cli.output.find(file), std::string::npos) << cli.output;

@@ -99,7 +99,7 @@ TEST(OptionParser, AliasesGivenOptionsAndDefaultsAsWritten) {
   EXPECT_TRUE(parser.Given("seed"));  // typed, even if equal to the default
   EXPECT_FALSE(parser.Given("gamma"));
   EXPECT_NE(parser.Help().find("(=0.3)"), std::string::npos);
-  EXPECT_NE(parser.Help().find("--input_path = --sparse_path"),
+  EXPECT_NE(parser.Help().find("--input_path = --sparse_path (deprecated)"),
             std::string::npos);
 
   const auto ini =
@@ -115,6 +115,131 @@ TEST(OptionParser, AliasesGivenOptionsAndDefaultsAsWritten) {
   make(&both);
   Args twice({"demo", "--input_path=a", "--sparse_path", "b"});
   EXPECT_THROW(both.Parse(twice.argc(), twice.argv()), Error);
+}
+
+// An old name (AddAlias) works and prints exactly one notice line naming
+// the new name, once however often it appears; the new name prints nothing.
+TEST(OptionParser, DeprecatedNamePrintsOneNoticeNamingTheNewName) {
+  std::string sparse;
+  const auto parse = [&](std::vector<std::string> words) {
+    OptionParser parser("demo", "test");
+    parser.Add("sparse_path", &sparse, "model");
+    parser.AddAlias("input_path", "sparse_path");
+    Args args(std::move(words));
+    ::testing::internal::CaptureStderr();
+    EXPECT_TRUE(parser.Parse(args.argc(), args.argv()));
+    return ::testing::internal::GetCapturedStderr();
+  };
+  EXPECT_EQ(parse({"demo", "--input_path", "old"}),
+            "notice: --input_path is deprecated for demo; use --sparse_path\n");
+  EXPECT_EQ(sparse, "old");
+  EXPECT_EQ(parse({"demo", "--input_path=eq"}),
+            "notice: --input_path is deprecated for demo; use --sparse_path\n");
+  EXPECT_EQ(sparse, "eq");
+  EXPECT_EQ(parse({"demo", "--sparse_path", "new"}), "");
+  EXPECT_EQ(sparse, "new");
+  const auto ini =
+      std::filesystem::temp_directory_path() / "watergs_deprecated_opt.ini";
+  std::ofstream(ini) << "input_path = from_ini\n";
+  EXPECT_EQ(parse({"demo", "--project_path", ini.string()}),
+            "notice: --input_path is deprecated for demo; use --sparse_path\n");
+  EXPECT_EQ(sparse, "from_ini");
+
+  // A help request says nothing about the names it was given with.
+  OptionParser help("demo", "test");
+  help.Add("sparse_path", &sparse, "model");
+  help.AddAlias("input_path", "sparse_path");
+  Args help_args({"demo", "--input_path", "x", "-h"});
+  ::testing::internal::CaptureStdout();
+  ::testing::internal::CaptureStderr();
+  EXPECT_FALSE(help.Parse(help_args.argc(), help_args.argv()));
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_NE(::testing::internal::GetCapturedStdout().find(
+                "--input_path = --sparse_path (deprecated)"),
+            std::string::npos);
+}
+
+// A boolean old name standing for `--name value` (train's --eval for
+// --split train): set, it is that value with one notice; `--eval 0` leaves
+// the option alone; with the new name as well it is an error.
+TEST(OptionParser, BooleanAliasStandsForAValue) {
+  std::string split;
+  const auto parse = [&](std::vector<std::string> words) {
+    split = "all";
+    OptionParser parser("demo", "test");
+    parser.Add("split", &split, "views");
+    parser.AddAlias("eval", "split", "train");
+    Args args(std::move(words));
+    ::testing::internal::CaptureStderr();
+    try {
+      EXPECT_TRUE(parser.Parse(args.argc(), args.argv()));
+    } catch (const Error&) {
+      ::testing::internal::GetCapturedStderr();
+      throw;
+    }
+    return ::testing::internal::GetCapturedStderr();
+  };
+  const std::string notice =
+      "notice: --eval is deprecated for demo; use --split train\n";
+  EXPECT_EQ(parse({"demo", "--eval"}), notice);
+  EXPECT_EQ(split, "train");
+  EXPECT_EQ(parse({"demo", "--eval", "1"}), notice);
+  EXPECT_EQ(split, "train");
+  EXPECT_EQ(parse({"demo", "--eval=0"}), notice);
+  EXPECT_EQ(split, "all");
+  EXPECT_EQ(parse({"demo", "--split", "train"}), "");
+  EXPECT_EQ(split, "train");
+  const auto ini =
+      std::filesystem::temp_directory_path() / "watergs_bool_alias_opt.ini";
+  std::ofstream(ini) << "eval = 1\n";
+  EXPECT_EQ(parse({"demo", "--project_path", ini.string()}), notice);
+  EXPECT_EQ(split, "train");
+  EXPECT_THROW(parse({"demo", "--eval", "--split", "all"}), Error);
+  EXPECT_THROW(parse({"demo", "--eval=maybe"}), Error);
+}
+
+// Every boolean takes the same forms, whatever its default and however it
+// was registered (AddFlag or Add<bool>): `--x`, `--x 0|1`, `--x=false`,
+// `x = 1` in a project file; help shows `--x [=0|1(=1)] (=default)`.
+TEST(OptionParser, BooleansTakeOneStyle) {
+  bool resume = false, refine = true;
+  int seed = 0;
+  const auto parse = [&](std::vector<std::string> words) {
+    resume = false;
+    refine = true;
+    OptionParser parser("demo", "test");
+    parser.AddFlag("resume", &resume, "continue");
+    parser.Add("refine", &refine, "refine");
+    parser.Add("seed", &seed, "seed");
+    Args args(std::move(words));
+    EXPECT_TRUE(parser.Parse(args.argc(), args.argv()));
+    return parser.Help();
+  };
+  const std::string help = parse({"demo"});
+  EXPECT_FALSE(resume);
+  EXPECT_TRUE(refine);
+  EXPECT_NE(help.find("--resume [=0|1(=1)] (=0)"), std::string::npos) << help;
+  EXPECT_NE(help.find("--refine [=0|1(=1)] (=1)"), std::string::npos) << help;
+  parse({"demo", "--resume", "--refine", "0", "--seed", "1"});
+  EXPECT_TRUE(resume);
+  EXPECT_FALSE(refine);
+  EXPECT_EQ(seed, 1);
+  parse({"demo", "--resume", "1", "--refine=false"});
+  EXPECT_TRUE(resume);
+  EXPECT_FALSE(refine);
+  parse({"demo", "--resume=0", "--refine", "on"});
+  EXPECT_FALSE(resume);
+  EXPECT_TRUE(refine);
+  const auto ini =
+      std::filesystem::temp_directory_path() / "watergs_bool_opt.ini";
+  std::ofstream(ini) << "resume = 1\nrefine = 0\n";
+  parse({"demo", "--project_path", ini.string()});
+  EXPECT_TRUE(resume);
+  EXPECT_FALSE(refine);
+  OptionParser bad("demo", "test");
+  bad.AddFlag("resume", &resume, "continue");
+  Args maybe({"demo", "--resume=maybe"});
+  EXPECT_THROW(bad.Parse(maybe.argc(), maybe.argv()), Error);
 }
 
 TEST(OptionParser, MissingProjectFileNamesIt) {

@@ -44,7 +44,7 @@ TEST(ModelConverterCli, RefusesTheFolderOfItsInputModelHoweverSpelled) {
   const auto points = ReadFileBytes(model + "/points3D.bin");
   fs::create_directory_symlink("sparse/0", ws + "/link");
   const std::string convert =
-      WatergsBin() + " model_converter --output_type BIN --input_path ";
+      WatergsBin() + " model_converter --output_type BIN --sparse_path ";
   for (const std::string& out :
        {model, model + "/.", ws + "/sparse/../sparse/0", ws + "/link"}) {
     const auto run = RunCommand(convert + ws + " --output_path " + out);
@@ -52,7 +52,7 @@ TEST(ModelConverterCli, RefusesTheFolderOfItsInputModelHoweverSpelled) {
   }
   ExpectOneLineError(RunCommand(WatergsBin() +
                                 " model_converter --output_type TXT "
-                                "--input_path " +
+                                "--sparse_path " +
                                 model + " --output_path " + model),
                      "holds the input model");
   EXPECT_TRUE(ReadFileBytes(model + "/images.bin") == images) << "rewritten";
@@ -84,7 +84,7 @@ TEST(ModelConverterCli, WritesTheThreeFilesAsASet) {
   fs::create_directory(out + "/points3D.bin");
   ExpectOneLineError(RunCommand(WatergsBin() +
                                 " model_converter --output_type BIN "
-                                "--input_path " +
+                                "--sparse_path " +
                                 (dir / "in") + " --output_path " + out),
                      out + "/points3D.bin: is a directory");
   EXPECT_TRUE(ReadFileBytes(out + "/cameras.bin") == cameras) << "replaced";

@@ -101,7 +101,7 @@ TEST(PosesBounds, ReadsLlffPosesAsTheModelsOwn) {
   // model_info compares a workspace with it.
   WriteReconstruction(model, dir / "sparse/0", ModelFormat::kBinary);
   const testing::CommandResult cli =
-      testing::RunCommand(testing::WatergsBin() + " model_info --input_path " +
+      testing::RunCommand(testing::WatergsBin() + " model_info --sparse_path " +
                           dir.path() + " --reference_path " + npy);
   EXPECT_EQ(cli.exit_code, 0) << cli.output;
   EXPECT_NE(cli.output.find("9 common images"), std::string::npos)

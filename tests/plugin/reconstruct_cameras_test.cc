@@ -176,7 +176,7 @@ TEST(ReconstructCameras, ACollectionsPhotosOfOneEXIFCameraShareACamera) {
   EXPECT_NE(*canon_cameras.begin(), *phone_cameras.begin());
 
   const auto poses =
-      RunCommand(WatergsBin() + " model_info --input_path " + (dir / "ws") +
+      RunCommand(WatergsBin() + " model_info --sparse_path " + (dir / "ws") +
                  " --reference_path " + truth.string());
   ASSERT_EQ(poses.exit_code, 0) << poses.output;
   std::smatch worst;

@@ -40,10 +40,11 @@ TEST(TrainCli, TrainsWritesOutputsAndResumes) {
   TempDir dir("train_cli");
   const std::string ws = MakeWorkspace(dir);
   const std::string out = dir / "out";
-  const std::string args = " --workspace_path " + ws + " --output_path " + out +
-                           " --iterations 30 --eval --checkpoint_every 15 "
-                           "--sh_degree 1 --seed 3 --num_threads 2 "
-                           "--test_iterations 15";
+  const std::string args =
+      " --workspace_path " + ws + " --output_path " + out +
+      " --iterations 30 --split train --checkpoint_every 15 "
+      "--sh_degree 1 --seed 3 --num_threads 2 "
+      "--test_iterations 15";
   const auto run = RunCommand(WatergsBin() + " train" + args);
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("PSNR"), std::string::npos) << run.output;

@@ -37,11 +37,11 @@ TEST(TrainCli, PrintsHeldOutPsnrOnItsOwnLine) {
   TempDir dir("train_psnr_line");
   const std::string ws =
       testing::MakeRenderedWorkspace(dir / "ws", testing::SmallSceneOptions());
-  const auto run =
-      RunCommand(WatergsBin() + " train --workspace_path " + ws +
-                 " --output_path " + (dir / "out") +
-                 " --iterations 4 --eval --test_iterations 2,4 --sh_degree 1 "
-                 "--num_threads 1");
+  const auto run = RunCommand(
+      WatergsBin() + " train --workspace_path " + ws + " --output_path " +
+      (dir / "out") +
+      " --iterations 4 --split train --test_iterations 2,4 --sh_degree 1 "
+      "--num_threads 1");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   // One line per test iteration, starting the line, two decimals.
   std::istringstream lines(run.output);

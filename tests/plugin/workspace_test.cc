@@ -263,7 +263,7 @@ TEST(Workspace, MissingImageAndSizeMismatchNameTheFile) {
         << e.what();
   }
   const testing::CommandResult cli =
-      testing::RunCommand(testing::WatergsBin() + " model_info --input_path " +
+      testing::RunCommand(testing::WatergsBin() + " model_info --sparse_path " +
                           dir.path() + "/nowhere");
   EXPECT_NE(cli.exit_code, 0);
 }

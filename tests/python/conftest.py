@@ -35,7 +35,7 @@ def trained(tmp_path_factory):
     import watergs
     out = tmp_path_factory.mktemp("trained") / "train"
     return watergs.train(SCENE, out, downscale=DOWNSCALE, iterations=100,
-                         test_iterations=100, eval=True, quiet=True)
+                         test_iterations=100, split="train", quiet=True)
 
 
 # Under CTest (which sets WATERGS_PYTEST_SKIP_CODE, the test's

@@ -63,8 +63,9 @@ def test_option_values_and_thread_count_restored(trained, tmp_path):
     # numpy values and lists as the command line writes them.
     one = watergs.train(SCENE, tmp_path / "one", downscale=DOWNSCALE,
                         iterations=np.int64(2), num_threads=1,
-                        eval=np.bool_(True), background=np.ones(3),
-                        test_iterations=[1, 2], compact_optimizer=False,
+                        split="train", background=np.ones(3),
+                        test_iterations=[1, 2],
+                        compact_optimizer=np.bool_(False),
                         sh_degree=None, quiet=True)
     assert one.report["eval"] is True and one.report["iterations"] == 2
     assert one.report["compact_optimizer"] is False
