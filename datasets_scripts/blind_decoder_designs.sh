@@ -40,7 +40,7 @@ raw="$out/raw/point_cloud.ply"
 if [ ! -f "$raw" ]; then
   mkdir -p "$out/raw"
   "$bin" train --workspace_path "$scene" --output_path "$out/raw" --downscale 2 \
-    --iterations 2000 --densify_until_iter 1000 --eval --test_iterations 2000 > "$out/raw.log"
+    --iterations 2000 --densify_until_iter 1000 --split train --test_iterations 2000 > "$out/raw.log"
 fi
 if [ ! -d "$out/raw_renders" ]; then
   "$bin" render --input_path "$raw" --workspace_path "$scene" --downscale 2 --split all \

@@ -4,7 +4,7 @@
 # with `watergs transforms_importer`:
 #   OUT/lego/source/           the scene as published (PNGs, transforms_*.json; depth/normal maps left out)
 #   OUT/lego/workspace/        images/{train,test}/ on a white background, sparse/0 (random initial
-#                              points), test_views.txt (the 200 test views, held out by --eval)
+#                              points), test_views.txt (the 200 test views, held out by --split train)
 # Usage: bash datasets_scripts/download_nerf_synthetic.sh [--from DIR] [OUT_DIR (default data/nerf_synthetic)]
 #   --from DIR  a local copy: DIR holds lego/ directly or under nerf_synthetic/ or data/nerf_synthetic/
 # Source (public copy, the original is on Google Drive): github luo-ziyuan/CopyRNeRF-code,
@@ -62,4 +62,4 @@ if [ ! -f "$scene/workspace/test_views.txt" ]; then
   "$bin" transforms_importer --transforms_path "$scene/source" --output_path "$scene/workspace" \
     --background white
 fi
-log "done: $scene/workspace (train with --eval --background white)"
+log "done: $scene/workspace (train with --split train --background white)"

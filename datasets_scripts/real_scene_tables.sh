@@ -14,7 +14,9 @@
 # Writes OUT/tables.md (aggregate_real_scene.py) and OUT/times.txt (seconds per stage).
 # Environment: WATERGS_BIN, DECODER, DOWNSCALE (2), ITERATIONS (7000; densification to half of it),
 # EMBED_ARGS (extra embed options for every run, e.g. --stop_margin 1), ATTACK_DRAWS (1: draws of
-# each random distortion in Table 1; above 1 a kept table1.json with another count is evaluated again).
+# each random distortion in Table 1; above 1 a kept table1.json with another count is evaluated again),
+# BACKGROUND (--background of every command: white for NeRF-synthetic; default black), INIT_ARGS
+# (extra train options, e.g. --sh_degree 3).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 scene=${1:?usage: real_scene_tables.sh SCENE OUT [READING:SEED ...]}
@@ -28,6 +30,8 @@ ds="${DOWNSCALE:-2}"
 iterations="${ITERATIONS:-7000}"
 draws="${ATTACK_DRAWS:-1}"
 msg=text:WGS-26
+background=(--background "${BACKGROUND:-black}")
+export BACKGROUND="${BACKGROUND:-black}"
 [ -d "$scene/images" ] || { echo "real_scene_tables: $scene/images: no such folder" >&2; exit 1; }
 mkdir -p "$out"
 raw="$out/raw/point_cloud.ply"
@@ -44,7 +48,8 @@ if [ ! -f "$raw" ]; then
   log "training the raw model ($iterations iterations, downscale $ds) -> $out/raw (log $out/raw.log)"
   timed train "$bin" train --workspace_path "$scene" --output_path "$out/raw" --downscale "$ds" --split train \
     --iterations "$iterations" --densify_until_iter $((iterations / 2)) --checkpoint_every 500 \
-    --test_iterations "$((iterations / 2)),$iterations" --log_every 100 "${resume[@]}" >> "$out/raw.log" 2>&1
+    --test_iterations "$((iterations / 2)),$iterations" --log_every 100 "${background[@]}" ${INIT_ARGS:-} \
+    "${resume[@]}" >> "$out/raw.log" 2>&1
 fi
 
 for run in "${runs[@]}"; do
@@ -71,7 +76,7 @@ for run in "${runs[@]}"; do
     timed "eval:$label" "$bin" eval --raw_path "$raw" --input_path "$dir/wm.ply" --workspace_path "$scene" \
       --downscale "$ds" --decoder "$decoder" --message "$msg" --split test \
       --attacks identity,gn:0.01,dropout:0.1,crop:0.1 --image_attacks '' --lpips_weights '' \
-      --attack_draws "$draws" \
+      --attack_draws "$draws" "${background[@]}" \
       --output_path "$dir/table1" > "$dir/table1.txt" 2>&1
   fi
 done

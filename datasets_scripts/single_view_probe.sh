@@ -10,7 +10,8 @@
 #   datasets_scripts/single_view_probe.sh OUT LABEL [embed options...]
 # Environment: WATERGS_BIN, SCENE (workspace, default the demo scene), RAW (trained PLY; default
 # OUT/raw/point_cloud.ply, trained here as run_demo.sh trains it), DECODER, DOWNSCALE (2),
-# FREE_VIEWS (48; 12 before: two close-ups in those 12 set the second scene's mean).
+# FREE_VIEWS (48; 12 before: two close-ups in those 12 set the second scene's mean), BACKGROUND
+# (--background of every command, e.g. white for NeRF-synthetic; default black).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 out=${1:?usage: single_view_probe.sh OUT LABEL [embed options...]}; label=${2:?label}; shift 2
@@ -20,27 +21,35 @@ decoder="${DECODER:-$root/watermark/models/decoder_48.bin}"
 ds="${DOWNSCALE:-2}"
 raw="${RAW:-$out/raw/point_cloud.ply}"
 free_views="${FREE_VIEWS:-48}"
+background=(--background "${BACKGROUND:-black}")
 msg=text:WGS-26
 if [ ! -f "$raw" ]; then
   "$bin" train --workspace_path "$scene" --output_path "$(dirname "$raw")" --downscale "$ds" \
-    --iterations 2000 --densify_until_iter 1000 --split train --test_iterations 2000 > "$out/raw.log"
+    --iterations 2000 --densify_until_iter 1000 --split train --test_iterations 2000 "${background[@]}" \
+    > "$out/raw.log"
 fi
 run="$out/runs/$label"; mkdir -p "$run"
 t0=$SECONDS
-"$bin" embed --input_path "$raw" --workspace_path "$scene" --downscale "$ds" --decoder "$decoder" \
-  --message "$msg" --output_path "$run/wm.ply" --split train "$@" > "$run/embed.log" 2>&1
-seconds=$((SECONDS - t0))
+# A run stopped after its embedding (in the reads below) reads its kept wm.ply again.
+if [ -f "$run/wm.ply" ] && [ -f "$run/embed_seconds" ] && grep -q "^embed: wrote $run/wm.ply" "$run/embed.log"; then
+  seconds=$(cat "$run/embed_seconds")
+else
+  "$bin" embed --input_path "$raw" --workspace_path "$scene" --downscale "$ds" --decoder "$decoder" \
+    --message "$msg" --output_path "$run/wm.ply" --split train "${background[@]}" "$@" > "$run/embed.log" 2>&1
+  seconds=$((SECONDS - t0))
+  echo "$seconds" > "$run/embed_seconds"
+fi
 read_views() {  # NAME [extract options]
   local name=$1; shift
   "$bin" extract --input_path "$run/wm.ply" --workspace_path "$scene" --downscale "$ds" \
-    --decoder "$decoder" --message "$msg" --json "$run/$name.json" "$@" > "$run/$name.txt"
+    --decoder "$decoder" --message "$msg" --json "$run/$name.json" "${background[@]}" "$@" > "$run/$name.txt"
 }
 read_views held --split test --raw_path "$raw"
 read_views free --num_views "$free_views" --seed 1 --raw_path "$raw"
 # PSNR of the held-out views against the photos and against the raw renders (no attacks).
 "$bin" eval --raw_path "$raw" --input_path "$run/wm.ply" --workspace_path "$scene" --downscale "$ds" \
   --decoder "$decoder" --message "$msg" --attacks '' --image_attacks '' --lpips_weights '' \
-  --output_path "$run/eval" > "$run/eval.txt" 2>&1
+  "${background[@]}" --output_path "$run/eval" > "$run/eval.txt" 2>&1
 /usr/bin/python3 - "$run" "$label" "$seconds" "$*" "$out/results.txt" <<'PY'
 import json, re, sys
 run, label, seconds, args, results = sys.argv[1:]

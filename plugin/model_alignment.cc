@@ -350,8 +350,8 @@ double Correlation(const std::vector<float>& a, const std::vector<float>& b) {
   return (sab - sa * sb / n) / std::sqrt(va * vb);
 }
 
-// `count` views spread over the training split (the views train --eval and
-// embed --eval hold out are left out): the fit never sees a photo that a
+// `count` views spread over the training split (the views train and embed
+// --split train hold out are left out): the fit never sees a photo that a
 // held-out figure is measured on.
 std::vector<size_t> ProbeViews(const TrainingViews& views, int count) {
   std::vector<size_t> pool;

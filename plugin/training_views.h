@@ -25,9 +25,7 @@ class WorkspaceViews : public TrainingViews {
     return workspace_.ViewCamera(view);
   }
   std::shared_ptr<const ImageRGB> Image(size_t view) const override;
-  bool HeldOut(size_t view) const override {
-    return workspace_.HeldOut(view);
-  }
+  bool HeldOut(size_t view) const override { return workspace_.HeldOut(view); }
 
  private:
   const Workspace& workspace_;

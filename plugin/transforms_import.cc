@@ -32,8 +32,9 @@ json ReadJsonFile(const std::string& path) {
   const std::vector<uint8_t> bytes = ReadFileBytes(path);
   json parsed = json::parse(bytes.begin(), bytes.end(), nullptr, false);
   if (parsed.is_discarded() || !parsed.is_object()) {
-    FailAt(path, "not a JSON object (a transforms file holds {\"frames\": "
-                 "[...], ...})");
+    FailAt(path,
+           "not a JSON object (a transforms file holds {\"frames\": "
+           "[...], ...})");
   }
   return parsed;
 }
@@ -86,8 +87,9 @@ Eigen::Matrix4d ReadMatrix(const json& frame, const std::string& where) {
   const double error =
       (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).norm();
   if (error > 1e-3 || rotation.determinant() < 0) {
-    FailAt(where, "\"transform_matrix\" is not a rotation and a translation "
-                  "(scaled or mirrored axes)");
+    FailAt(where,
+           "\"transform_matrix\" is not a rotation and a translation "
+           "(scaled or mirrored axes)");
   }
   return m;
 }
@@ -122,15 +124,16 @@ Camera FrameCamera(const json& frame, const json& file,
   }
   // Focal lengths from angles need the width: filled in by the caller once
   // the image size is known; stored as negative angles meanwhile.
-  const double fx = has_fl_x ? Number(frame, file, "fl_x", where, nan)
-                             : -Number(frame, file, "camera_angle_x", where, nan);
+  const double fx = has_fl_x
+                        ? Number(frame, file, "fl_x", where, nan)
+                        : -Number(frame, file, "camera_angle_x", where, nan);
   const bool has_fl_y = frame.contains("fl_y") || file.contains("fl_y");
   const bool has_angle_y =
       frame.contains("camera_angle_y") || file.contains("camera_angle_y");
-  const double fy =
-      has_fl_y ? Number(frame, file, "fl_y", where, nan)
-      : has_angle_y ? -Number(frame, file, "camera_angle_y", where, nan)
-                    : 0;  // 0: as fx
+  const double fy = has_fl_y ? Number(frame, file, "fl_y", where, nan)
+                    : has_angle_y
+                        ? -Number(frame, file, "camera_angle_y", where, nan)
+                        : 0;  // 0: as fx
   const double cx = Number(frame, file, "cx", where, -1);
   const double cy = Number(frame, file, "cy", where, -1);
   const double k1 = Number(frame, file, "k1", where, 0);
@@ -182,8 +185,9 @@ void CompleteCamera(Camera* camera, const std::string& image_path,
   if (p[3] < 0) p[3] = 0.5 * h;
   if (!(p[0] > 0) || !(p[1] > 0) || !std::isfinite(p[0]) ||
       !std::isfinite(p[1])) {
-    FailAt(where, "focal length is not positive (a camera angle outside "
-                  "(0, pi)?)");
+    FailAt(where,
+           "focal length is not positive (a camera angle outside "
+           "(0, pi)?)");
   }
 }
 
@@ -215,10 +219,10 @@ std::vector<TransformsFrame> ReadFramesOf(const std::string& json_path,
     const fs::path relative =
         fs::path(parsed.image_path).lexically_relative(folder);
     parsed.workspace_name =
-        split.empty() ? relative.generic_string()
-                      : split + "/" + fs::path(parsed.image_path)
-                                          .filename()
-                                          .generic_string();
+        split.empty()
+            ? relative.generic_string()
+            : split + "/" +
+                  fs::path(parsed.image_path).filename().generic_string();
     out.push_back(std::move(parsed));
   }
   return out;
@@ -358,8 +362,7 @@ TransformsImportSummary ImportTransforms(
   }
   const fs::path parent = fs::absolute(output).parent_path();
   CreateDirectories(parent.string());
-  const fs::path staging =
-      parent / (output.filename().string() + ".importing");
+  const fs::path staging = parent / (output.filename().string() + ".importing");
   fs::remove_all(staging);
   CreateDirectories((staging / "images").string());
   try {
@@ -392,11 +395,11 @@ TransformsImportSummary WriteWorkspace(
         WorkspacePixels(frame.image_path, options.background, &had_alpha);
     if (uint64_t(pixels.cols) != frame.camera.width ||
         uint64_t(pixels.rows) != frame.camera.height) {
-      FailAt(frame.image_path,
-             "is " + std::to_string(pixels.cols) + "x" +
-                 std::to_string(pixels.rows) + " but the transforms file says " +
-                 std::to_string(frame.camera.width) + "x" +
-                 std::to_string(frame.camera.height));
+      FailAt(frame.image_path, "is " + std::to_string(pixels.cols) + "x" +
+                                   std::to_string(pixels.rows) +
+                                   " but the transforms file says " +
+                                   std::to_string(frame.camera.width) + "x" +
+                                   std::to_string(frame.camera.height));
     }
     summary.composited += had_alpha;
     std::string name = frame.workspace_name;
@@ -432,15 +435,17 @@ TransformsImportSummary WriteWorkspace(
   for (const Image& image : images) {
     distances.push_back((image.ProjectionCenter() - summary.centre).norm());
   }
-  std::nth_element(distances.begin(),
-                   distances.begin() + distances.size() / 2, distances.end());
-  summary.half_side = options.points_half_side * distances[distances.size() / 2];
+  std::nth_element(distances.begin(), distances.begin() + distances.size() / 2,
+                   distances.end());
+  summary.half_side =
+      options.points_half_side * distances[distances.size() / 2];
   std::mt19937_64 random(options.seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   for (int p = 0; p < options.num_points; ++p) {
     Point3D point;
-    point.xyz = summary.centre + summary.half_side * Eigen::Vector3d(
-                                     unit(random), unit(random), unit(random));
+    point.xyz = summary.centre +
+                summary.half_side *
+                    Eigen::Vector3d(unit(random), unit(random), unit(random));
     point.rgb.setConstant(128);
     model.AddPoint3D(point3D_t(p + 1), point);
   }

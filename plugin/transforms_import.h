@@ -79,6 +79,7 @@ struct TransformsImportSummary {
 
 // Writes the workspace (into a temporary folder renamed at the end, so an
 // error or a kill leaves no half workspace); progress on stderr.
-TransformsImportSummary ImportTransforms(const TransformsImportOptions& options);
+TransformsImportSummary ImportTransforms(
+    const TransformsImportOptions& options);
 
 }  // namespace watergs

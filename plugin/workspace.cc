@@ -341,10 +341,9 @@ void Workspace::ReadTestViews(Workspace* workspace,
     if (line.empty() || line[0] == '#') continue;
     const auto it = view_of_name.find(line);
     if (it == view_of_name.end()) {
-      FailAt(path.string(), "line " + std::to_string(number) + ": '" +
-                                Printable(line) +
-                                "' is not an image of the model " +
-                                workspace->model_path_);
+      FailAt(path.string(),
+             "line " + std::to_string(number) + ": '" + Printable(line) +
+                 "' is not an image of the model " + workspace->model_path_);
     }
     workspace->listed_test_[it->second] = true;
   }

@@ -96,7 +96,8 @@ class Workspace {
 
  private:
   Workspace() = default;
-  static void ReadTestViews(Workspace* workspace, const WorkspaceOptions& given);
+  static void ReadTestViews(Workspace* workspace,
+                            const WorkspaceOptions& given);
 
   WorkspaceOptions options_;
   std::string model_path_;

@@ -140,6 +140,14 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
   if (options_.owner_reading && options_.decoder_jitter.enabled()) {
     Fail("embed: the owner's reading takes no decoder jitter");
   }
+  if (!(options_.blind.weight >= 0) || !(options_.blind.margin >= 0)) {
+    Fail("embed: the blind term's weight and margin must be >= 0");
+  }
+  if (options_.blind.weight > 0 && !options_.owner_reading) {
+    Fail(
+        "embed: a blind term goes beside the owner's reading (--reading "
+        "both)");
+  }
   if (!(options_.mse_weight >= 0)) Fail("embed: mse_weight must be >= 0");
   if (!(options_.masking >= 0)) Fail("embed: masking must be >= 0");
   if (options_.masking > 0 && options_.mse_weight <= 0) {
@@ -227,6 +235,11 @@ void Embedder::UseDeviceStep(const DeviceEmbeddingStepFactory& make) {
   }
   device_ = make(&model_, &adam_);
   device_density_ = false;
+  if (device_ && options_.blind.weight > 0) {
+    Fail(
+        "embed: --reading both runs on the CPU only (the CUDA step has no "
+        "blind term yet): give --device cpu");
+  }
   if (device_ && options_.densify) {
     device_->TakeDensityControl(density_options_, scene_extent_,
                                 strategy_->SaveState());
@@ -261,6 +274,10 @@ std::string Embedder::RunSignature() const {
   if (options_.margin > 0) j["margin"] = options_.margin;
   if (options_.fidelity_to_input) j["fidelity_to_input"] = true;
   if (options_.owner_reading) j["owner_reading"] = true;
+  if (options_.blind.weight > 0) {
+    j["blind_weight"] = options_.blind.weight;
+    j["blind_margin"] = options_.blind.margin;
+  }
   if (options_.adam.feature_lr != AdamOptions().feature_lr) {
     j["feature_lr"] = options_.adam.feature_lr;
   }
@@ -503,10 +520,10 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   } else if (plan.jpeg) {
     stats->bce = JpegMessageLoss(plan, stats);
   } else {
-    stats->bce =
-        AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
-                       options_.gamma, &grad_image_, &stats->bit_errors,
-                       options_.margin, plan.reference_logits.get());
+    stats->bce = AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
+                                options_.gamma, &grad_image_,
+                                &stats->bit_errors, options_.margin,
+                                plan.reference_logits.get(), options_.blind);
   }
   stats->total = stats->image.total + options_.gamma * stats->bce;
   auto t4 = Clock::now();
@@ -550,7 +567,7 @@ double Embedder::JpegMessageLoss(const IterationPlan& plan,
   return AddJpegMessageLoss(*decoder_, render_, plan.decoder_crop,
                             options_.jpeg_quality, targets_, options_.gamma,
                             &grad_image_, &stats->bit_errors, options_.margin,
-                            plan.reference_logits.get());
+                            plan.reference_logits.get(), options_.blind);
 }
 
 double Embedder::JitteredMessageLoss(const IterationPlan& plan,

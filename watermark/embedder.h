@@ -96,6 +96,10 @@ struct EmbedOptions {
   // and patch, as `extract --raw_path` reads it; the scene's own lean per
   // bit then costs nothing to overcome. Needs no decoder jitter.
   bool owner_reading = false;
+  // With owner_reading, a blind term beside it (weight > 0): the message
+  // term also pushes the logits themselves past blind.margin, so that a
+  // reader without the raw model finds the message too (--reading both).
+  BlindTerm blind;
   // The image term's target on training cameras: the input model's render
   // there instead of the photo (free viewpoints always use the render), so
   // fine-tuning spends its changes on the message, not on refitting photos.

@@ -34,7 +34,7 @@ void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out) {
 double MessageBce(const std::vector<float>& logits,
                   const std::vector<float>& targets, double gamma,
                   std::vector<float>* dlogits, int* bit_errors, double margin,
-                  const std::vector<float>* reference) {
+                  const std::vector<float>* reference, const BlindTerm& blind) {
   if (logits.size() != targets.size() ||
       (reference && reference->size() != targets.size())) {
     Fail("message loss: the decoder reads " + std::to_string(logits.size()) +
@@ -62,20 +62,30 @@ double MessageBce(const std::vector<float>& logits,
   }
   for (float& g : grad.data) g *= static_cast<float>(gamma);
   *dlogits = std::move(grad.data);
+  if (reference && blind.weight > 0) {
+    std::vector<float> blind_grad;
+    const double blind_bce = MessageBce(logits, targets, gamma * blind.weight,
+                                        &blind_grad, nullptr, blind.margin);
+    for (size_t i = 0; i < blind_grad.size(); ++i) {
+      (*dlogits)[i] += blind_grad[i];
+    }
+    return bce + blind.weight * blind_bce;
+  }
   return bce;
 }
 
 double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                       const PixelRect& crop, const std::vector<float>& targets,
                       double gamma, ImageRGB* grad_image, int* bit_errors,
-                      double margin, const std::vector<float>* reference) {
+                      double margin, const std::vector<float>* reference,
+                      const BlindTerm& blind) {
   ImageRGB cropped, grad;
   if (!crop.empty()) CropImage(image, crop, &cropped);
   const ImageRGB& decoded = crop.empty() ? image : cropped;
   const std::vector<float> logits = decoder.Logits(decoded);
   std::vector<float> dlogits;
   const double bce = MessageBce(logits, targets, gamma, &dlogits, bit_errors,
-                                margin, reference);
+                                margin, reference, blind);
   decoder.InputGradient(decoded, dlogits, &grad);
   AddPatch(grad,
            crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop,
@@ -87,7 +97,8 @@ double AddJpegMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                           const PixelRect& crop, int quality,
                           const std::vector<float>& targets, double gamma,
                           ImageRGB* grad_image, int* bit_errors, double margin,
-                          const std::vector<float>* reference) {
+                          const std::vector<float>* reference,
+                          const BlindTerm& blind) {
   const PixelRect region =
       crop.empty() ? PixelRect{0, 0, image.width, image.height} : crop;
   ImageRGB cropped;
@@ -100,7 +111,7 @@ double AddJpegMessageLoss(BitDecoder& decoder, const ImageRGB& image,
   ImageRGB grad(compressed.width, compressed.height);
   const double bce =
       AddMessageLoss(decoder, compressed, PixelRect{}, targets, gamma, &grad,
-                     bit_errors, margin, reference);
+                     bit_errors, margin, reference, blind);
   // Straight-through: d JPEG(x) / dx taken as the identity.
   AddPatch(grad, region, 1.f, grad_image);
   return bce;

@@ -28,11 +28,20 @@ void CropImage(const ImageRGB& image, const PixelRect& rect, ImageRGB* out);
 // logits' own). `reference` (the unwatermarked model's logits at the same
 // view) is subtracted first: the owner's reading, bits and errors included.
 // Error if the lengths differ.
+// With a reference, `blind` (weight > 0) adds weight * BCE of the blind
+// reading (the logits themselves, moved by blind.margin) to the loss and its
+// gradient: one embedding both readers find (embed --reading both); the
+// bit errors stay the owner's.
+struct BlindTerm {
+  double weight = 0;
+  double margin = 0;
+};
 double MessageBce(const std::vector<float>& logits,
                   const std::vector<float>& targets, double gamma,
                   std::vector<float>* dlogits, int* bit_errors,
                   double margin = 0,
-                  const std::vector<float>* reference = nullptr);
+                  const std::vector<float>* reference = nullptr,
+                  const BlindTerm& blind = {});
 
 // The message term on a render: returns BCE(targets, D(image[crop])) (crop
 // in image pixels, empty = all of it) and adds gamma * d BCE / d image into
@@ -44,7 +53,8 @@ double AddMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                       const PixelRect& crop, const std::vector<float>& targets,
                       double gamma, ImageRGB* grad_image, int* bit_errors,
                       double margin = 0,
-                      const std::vector<float>* reference = nullptr);
+                      const std::vector<float>* reference = nullptr,
+                      const BlindTerm& blind = {});
 
 // gamma * BCE(targets, D(render(model)[crop])) and its gradient w.r.t. the
 // model, the render taken over options.rect (as Step does); for checks.
@@ -56,7 +66,8 @@ double AddJpegMessageLoss(BitDecoder& decoder, const ImageRGB& image,
                           const PixelRect& crop, int quality,
                           const std::vector<float>& targets, double gamma,
                           ImageRGB* grad_image, int* bit_errors, double margin,
-                          const std::vector<float>* reference);
+                          const std::vector<float>* reference,
+                          const BlindTerm& blind = {});
 
 double MessageLossGradient(Rasterizer& rasterizer, const GaussianModel& model,
                            const RenderCamera& camera,

@@ -70,6 +70,8 @@ struct EmbedArgs {
   // The reading the message term optimises: blind (the decoder's logits) or
   // owner (their difference from the raw model's at the same viewpoint).
   std::string reading = "owner";
+  // --reading both: the blind term beside the owner's reading.
+  double blind_weight = 1, blind_margin = 0;
   double mse_weight = 50;
   double masking = 0;
   // Multiplies every optimiser rate: Adam moves each parameter by about its
@@ -204,7 +206,7 @@ void WriteEmbedReport(const EmbedArgs& a, int argc, char** argv,
   std::vector<size_t> all(views.NumViews());
   for (size_t k = 0; k < all.size(); ++k) all[k] = k;
   ReportRequest request;
-  request.owner_reading = a.reading == "owner";
+  request.owner_reading = a.reading != "blind";
   request.raw_path = a.input_path;
   request.watermarked_path = a.output_path;
   request.decoder_path = a.decoder_path;
@@ -352,8 +354,15 @@ int RunEmbed(int argc, char** argv) {
              "The reading the embedding optimises: blind (the decoder's "
              "logits, what extract reads alone) or owner (logits minus the "
              "raw model's at the same viewpoint, what extract --raw_path "
-             "reads). blind also sets the blind defaults of --margin 3, "
-             "--fidelity photos, --mse_weight 0, --lr_scale 1 (unless given)");
+             "reads), or both (the owner's, plus a blind term: "
+             "--blind_weight, --blind_margin). blind also sets the blind "
+             "defaults of --margin 3, --fidelity photos, --mse_weight 0, "
+             "--lr_scale 1 (unless given)");
+  parser.Add("blind_weight", &a.blind_weight,
+             "--reading both: weight of the blind term beside the owner's");
+  parser.Add("blind_margin", &a.blind_margin,
+             "--reading both: the margin the blind term pushes the logits "
+             "past (0: their sign; a reader aggregating views needs little)");
   parser.Add("mse_weight", &a.mse_weight,
              "> 0: image loss = this x MSE (PSNR's measure) instead of L1 + "
              "D-SSIM");
@@ -397,8 +406,9 @@ int RunEmbed(int argc, char** argv) {
              "Also write the ownership report (HTML, see watergs report) of "
              "the written model on all cameras to this file");
   parser.Add("split", &a.split,
-             "Views to fine-tune on: all, or train (all but every 8th view, "
-             "as train --split train holds out, so that eval scores unseen "
+             "Views to fine-tune on: all, or train (all but the held-out "
+             "views: the workspace's test_views.txt, else every 8th, as "
+             "train --split train holds out, so that eval scores unseen "
              "views)");
   parser.AddAlias("eval", "split", "train");
   if (!parser.Parse(argc, argv)) return 0;
@@ -453,10 +463,16 @@ int RunEmbed(int argc, char** argv) {
     Fail("--fidelity: photos or input");
   }
   options.fidelity_to_input = a.fidelity == "input";
-  if (a.reading != "blind" && a.reading != "owner") {
-    Fail("--reading: blind or owner");
+  if (a.reading != "blind" && a.reading != "owner" && a.reading != "both") {
+    Fail("--reading: blind, owner or both");
   }
-  options.owner_reading = a.reading == "owner";
+  options.owner_reading = a.reading != "blind";
+  if (a.reading == "both") {
+    options.blind.weight = a.blind_weight;
+    options.blind.margin = a.blind_margin;
+  } else if (parser.Given("blind_weight") || parser.Given("blind_margin")) {
+    Fail("--blind_weight and --blind_margin go with --reading both");
+  }
   options.mse_weight = a.mse_weight;
   options.masking = a.masking;
   options.patience = a.patience;

@@ -133,8 +133,9 @@ int RunEval(int argc, char** argv) {
              "LPIPS is skipped (said once) if it is missing there; a path "
              "given that does not exist is an error");
   parser.Add("split", &which_views,
-             "Views to evaluate: test (every 8th, the views train and embed "
-             "--split train hold out), train (the others) or all");
+             "Views to evaluate: test (the views train and embed --split "
+             "train hold out: test_views.txt, else every 8th), train (the "
+             "others) or all");
   parser.AddAlias("views", "split");
   parser.Add("max_views", &max_views,
              "Evaluate at most this many views, spread evenly (0 = all)");

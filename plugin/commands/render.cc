@@ -91,7 +91,8 @@ int RunRender(int argc, char** argv) {
                      "Folder for the PNGs and their cameras (cameras.json: "
                      "Inria's, with cx, cy)");
   parser.Add("split", &split,
-             "Views to render: test (every 8th), train (the others) or all");
+             "Views to render: test (held out: test_views.txt, else every "
+             "8th), train (the others) or all");
   parser.Add("downscale", &ws.downscale, "Image downscale: 1, 2, 4 or 8");
   parser.Add("background", &background, "r,g,b in [0, 1], black or white");
   parser.Add("sh_degree", &sh_degree, "SH degree to use (-1 = the model's)");

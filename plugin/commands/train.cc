@@ -218,9 +218,9 @@ int RunTrain(int argc, char** argv) {
              "Threads (0 = all cores); results are reproducible for a given "
              "seed and thread count");
   parser.Add("split", &a.split,
-             "Views to train on: all, or train (all but every 8th view, the "
-             "LLFF/Mip-NeRF 360 hold-out, whose PSNR is logged: Inria's "
-             "--eval)");
+             "Views to train on: all, or train (all but the held-out views, "
+             "whose PSNR is logged: the workspace's test_views.txt, else "
+             "every 8th, LLFF's and Mip-NeRF 360's hold-out; Inria's --eval)");
   parser.AddAlias("eval", "split", "train");
   parser.Add("checkpoint_every", &a.checkpoint_every,
              "Write OUT/checkpoint.ckpt every N iterations (0 = never)");

@@ -21,7 +21,7 @@ int RunTransformsImporter(int argc, char** argv) {
       "transforms_{train,test}.json, nerfstudio, Instant-NGP) as a COLMAP "
       "workspace: images/ (RGBA composited on --background), sparse/0 with "
       "random initial points, and test_views.txt holding the scene's test "
-      "split out (train/embed/eval --eval use it).");
+      "split out (train and embed --split train, eval --split test use it).");
   parser.AddRequired("transforms_path", &options.transforms_path,
                      "transforms.json, or the folder holding it or "
                      "transforms_train.json (+ transforms_test.json)");
@@ -48,14 +48,13 @@ int RunTransformsImporter(int argc, char** argv) {
   std::snprintf(centre, sizeof centre, "(%.3g, %.3g, %.3g), half side %.3g",
                 summary.centre.x(), summary.centre.y(), summary.centre.z(),
                 summary.half_side);
-  std::cout << "Wrote " << options.output_path << ": "
-            << summary.train_views << " training and " << summary.test_views
-            << " test views (" << summary.composited
-            << " composited on the background), " << summary.cameras
-            << " camera(s), " << summary.points
+  std::cout << "Wrote " << options.output_path << ": " << summary.train_views
+            << " training and " << summary.test_views << " test views ("
+            << summary.composited << " composited on the background), "
+            << summary.cameras << " camera(s), " << summary.points
             << " random points in a cube at " << centre << "\n"
             << "Next: watergs train --workspace_path " << options.output_path
-            << " --output_path OUT --eval"
+            << " --output_path OUT --split train"
             << (background == "black" || background == "0,0,0"
                     ? std::string()
                     : " --background " + background)

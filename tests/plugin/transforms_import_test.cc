@@ -3,8 +3,8 @@
 // (in front, right of and above a camera), alpha composited exactly, the
 // scene's test split held out by the Workspace, nerfstudio's intrinsics and
 // distortion carried into COLMAP camera models, the random points around
-// where the cameras look, a train --eval run on an imported scene, and bad
-// files refused in one line naming the file without a half-written output.
+// where the cameras look, a train --split train run on an imported scene, and
+// bad files refused in one line naming the file without a half-written output.
 #include "plugin/transforms_import.h"
 
 #include <gtest/gtest.h>
@@ -34,7 +34,8 @@ using testing::TempDir;
 Eigen::Matrix4d GlLookAt(const Eigen::Vector3d& centre,
                          const Eigen::Vector3d& target) {
   const Eigen::Vector3d back = (centre - target).normalized();
-  const Eigen::Vector3d right = Eigen::Vector3d::UnitZ().cross(back).normalized();
+  const Eigen::Vector3d right =
+      Eigen::Vector3d::UnitZ().cross(back).normalized();
   const Eigen::Vector3d up = back.cross(right);
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
   m.block<3, 1>(0, 0) = right;
@@ -175,7 +176,8 @@ TEST(TransformsImport, TheScenesTestSplitIsHeldOut) {
   const Workspace workspace = Workspace::Open(wo);
   ASSERT_EQ(workspace.NumViews(), 8u);
   std::vector<std::string> test, train;
-  for (size_t v : workspace.TestViews(true)) test.push_back(workspace.ViewName(v));
+  for (size_t v : workspace.TestViews(true))
+    test.push_back(workspace.ViewName(v));
   for (size_t v : workspace.TrainViews(true)) {
     train.push_back(workspace.ViewName(v));
   }
@@ -187,8 +189,8 @@ TEST(TransformsImport, TheScenesTestSplitIsHeldOut) {
   // A split file naming an image the model lacks is refused in one line.
   std::ofstream(options.output_path + "/test_views.txt", std::ios::app)
       << "test/r_9.png\n";
-  const std::string message = Refusal(
-      options.output_path + "/test_views.txt", [&] { Workspace::Open(wo); });
+  const std::string message = Refusal(options.output_path + "/test_views.txt",
+                                      [&] { Workspace::Open(wo); });
   EXPECT_NE(message.find("r_9.png"), std::string::npos) << message;
 }
 
@@ -196,9 +198,17 @@ TEST(TransformsImport, NerfstudioIntrinsicsBecomeColmapCameras) {
   TempDir dir("transforms_ns");
   const std::string root = dir / "scene";
   WriteRgba(root + "/images/f1.png", 20, 10, cv::Vec4b(1, 2, 3, 255));
-  json file = {{"fl_x", 30.0}, {"fl_y", 31.0}, {"cx", 9.5}, {"cy", 5.25},
-               {"w", 20},      {"h", 10},      {"k1", 0.01}, {"k2", -0.002},
-               {"p1", 0.001},  {"p2", 0.0005}, {"frames", json::array()}};
+  json file = {{"fl_x", 30.0},
+               {"fl_y", 31.0},
+               {"cx", 9.5},
+               {"cy", 5.25},
+               {"w", 20},
+               {"h", 10},
+               {"k1", 0.01},
+               {"k2", -0.002},
+               {"p1", 0.001},
+               {"p2", 0.0005},
+               {"frames", json::array()}};
   const json matrix = MatrixJson(GlLookAt({3, 0, 0}, {0, 0, 0}));
   file["frames"].push_back(
       {{"file_path", "images/f1.png"}, {"transform_matrix", matrix}});
@@ -209,9 +219,9 @@ TEST(TransformsImport, NerfstudioIntrinsicsBecomeColmapCameras) {
   const std::vector<TransformsFrame> frames = ReadTransforms(root);
   ASSERT_EQ(frames.size(), 2u);
   EXPECT_EQ(frames[0].camera.model_id, OpenCVCameraModel::kModelId);
-  EXPECT_EQ(frames[0].camera.params,
-            (std::vector<double>{30, 31, 9.5, 5.25, 0.01, -0.002, 0.001,
-                                 0.0005}));
+  EXPECT_EQ(
+      frames[0].camera.params,
+      (std::vector<double>{30, 31, 9.5, 5.25, 0.01, -0.002, 0.001, 0.0005}));
   EXPECT_EQ(frames[1].camera.params[0], 40.0);  // the frame's own key wins
   EXPECT_EQ(frames[0].workspace_name, "images/f1.png");
 
@@ -226,8 +236,8 @@ TEST(TransformsImport, NerfstudioIntrinsicsBecomeColmapCameras) {
             PinholeCameraModel::kModelId);
   file["camera_model"] = "EQUIRECTANGULAR";
   WriteJson(root + "/transforms.json", file);
-  const std::string message =
-      Refusal(root + "/transforms.json: frame 0", [&] { ReadTransforms(root); });
+  const std::string message = Refusal(root + "/transforms.json: frame 0",
+                                      [&] { ReadTransforms(root); });
   EXPECT_NE(message.find("EQUIRECTANGULAR"), std::string::npos);
 }
 
@@ -331,10 +341,10 @@ TEST(TransformsImport, TrainHoldsOutTheImportedTestSplit) {
             std::string::npos)
       << imported.output;
   EXPECT_NE(imported.output.find("--background white"), std::string::npos);
-  const testing::CommandResult trained = testing::RunCommand(
-      testing::WatergsBin() + " train --workspace_path " + ws +
-      " --output_path " + (dir / "out") +
-      " --eval --iterations 20 --background white");
+  const testing::CommandResult trained =
+      testing::RunCommand(testing::WatergsBin() + " train --workspace_path " +
+                          ws + " --output_path " + (dir / "out") +
+                          " --split train --iterations 20 --background white");
   ASSERT_EQ(trained.exit_code, 0) << trained.output;
   const json result = json::parse(std::ifstream(dir / "out/report.json"));
   EXPECT_EQ(result["num_metric_views"].get<int>(), 4) << result.dump();

@@ -344,6 +344,46 @@ TEST(MessageBce, ReferenceLogitsAreSubtractedBeforeTheMargin) {
       Error);
 }
 
+// --reading both: the loss is the owner's plus weight x the blind reading's
+// (its own margin), the gradient their sum, checked against central finite
+// differences of the loss; the bit errors stay the owner's.
+TEST(MessageBce, BlindTermAddsTheBlindReadingBesideTheOwners) {
+  const std::vector<float> logits = {2.f, -1.f, 0.5f, -4.f, 0.1f};
+  const std::vector<float> reference = {3.f, -2.f, -0.5f, -6.f, 0.3f};
+  const std::vector<float> targets = {1.f, 0.f, 0.f, 1.f, 1.f};
+  const BlindTerm blind{0.7, 1.5};
+  std::vector<float> both, owner, plain;
+  int both_errors = -1, owner_errors = -1;
+  const double both_bce = MessageBce(logits, targets, 0.5, &both, &both_errors,
+                                     2.0, &reference, blind);
+  const double owner_bce =
+      MessageBce(logits, targets, 0.5, &owner, &owner_errors, 2.0, &reference);
+  const double blind_bce =
+      MessageBce(logits, targets, 0.5, &plain, nullptr, blind.margin);
+  EXPECT_NEAR(both_bce, owner_bce + blind.weight * blind_bce, 1e-6);
+  EXPECT_EQ(both_errors, owner_errors);
+  for (size_t i = 0; i < logits.size(); ++i) {
+    EXPECT_NEAR(both[i], owner[i] + blind.weight * plain[i], 1e-6);
+    // dlogits = gamma * d(loss) / d(logit).
+    std::vector<float> up = logits, down = logits;
+    const float h = 1e-2f;
+    up[i] += h;
+    down[i] -= h;
+    std::vector<float> unused;
+    const double numeric = (MessageBce(up, targets, 0.5, &unused, nullptr, 2.0,
+                                       &reference, blind) -
+                            MessageBce(down, targets, 0.5, &unused, nullptr,
+                                       2.0, &reference, blind)) /
+                           (2 * h);
+    EXPECT_NEAR(both[i], 0.5 * numeric, 2e-4) << "bit " << i;
+  }
+  // Without a reference (the blind reading itself) the term adds nothing.
+  std::vector<float> alone;
+  EXPECT_DOUBLE_EQ(
+      MessageBce(logits, targets, 0.5, &alone, nullptr, 2.0, nullptr, blind),
+      MessageBce(logits, targets, 0.5, &plain, nullptr, 2.0));
+}
+
 // Embedding for the owner's reading writes the message into the difference
 // from the input model: the owner's BER falls far below chance, and the
 // check (which reads as the owner) agrees with a direct read.
