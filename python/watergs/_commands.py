@@ -63,17 +63,18 @@ def _value_text(command, name, value):
 
 def _words(command, options):
     """Keyword arguments -> ["--name=value", "--flag", ...]. None leaves the
-    option at its default, True/False set or leave a flag, a list or tuple
+    option at its default, True/False write --name=1/--name=0 (every boolean
+    takes them, so False turns off one that defaults on), a list or tuple
     (or numpy array) is written comma-separated ("7000,30000", "1,1,1")."""
     words = []
     for name, value in options.items():
         # numpy arrays and scalars (numpy.bool_ included) as Python values.
         if hasattr(value, "tolist") and not isinstance(value, str):
             value = value.tolist()
-        if value is None or value is False:
+        if value is None:
             continue
-        if value is True:
-            words.append("--" + name)
+        if isinstance(value, bool):
+            words.append(f"--{name}={int(value)}")
             continue
         if isinstance(value, (list, tuple)):
             text = ",".join(_value_text(command, name, v) for v in value)

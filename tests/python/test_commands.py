@@ -215,3 +215,12 @@ def test_run_any_command_and_help(trained, capfd):
     text = watergs.help("embed")
     assert "--free_view_fraction" in text and "--gamma" in text
     assert "--free_view_fraction" in watergs.embed.__doc__
+
+
+def test_booleans_are_written_both_ways():
+    # False turns off an option that defaults on (detect's refine_pose), as
+    # every boolean takes --name=0|1; None leaves the default.
+    from watergs import _commands
+    assert _commands._words("detect", {"refine_pose": False, "x": None,
+                                       "resume": True, "n": 3}) == [
+        "--refine_pose=0", "--resume=1", "--n=3"]
