@@ -497,6 +497,9 @@ CLAIMS = [
           highest(grep(BLIND, r"^pool2_inria\s+held\s+[\d.]+% p90\s+[\d.]+ agg \d+ \[" + r"(\d+), " * 5 + r"(\d+)\]")),
           grep(BLIND, r"^pool2_inria\s.*?\| free(\d+)\s"),
           grep(BLIND, r"^pool2_inria\s.*?\| free\s+([\d.]+)%")),
+    Claim("`pool2_inria`) and {}% per held-out view at {} dB\n(`pool2_lr02_mse50`; the shipped decoder {}% at {} dB)",
+          probe("pool2_lr02_mse50", "held", BLIND), probe("pool2_lr02_mse50", "vs raw", BLIND),
+          probe("blind_lr02_mse50_m3", "held"), probe("blind_lr02_mse50_m3", "vs raw")),
 ]
 
 
