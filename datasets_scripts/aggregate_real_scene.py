@@ -73,7 +73,7 @@ def main(out):
     lines = [f"# {os.path.basename(os.path.normpath(out))}: real scene, watergs", ""]
     lines.append(f"Raw model: {raw['num_gaussians']} Gaussians, {raw['iterations']} iterations, "
                  f"held-out PSNR {raw['psnr']:.2f} dB, SSIM {raw['ssim']:.4f} over "
-                 f"{raw['num_metric_views']} views (every 8th photo), trained in "
+                 f"{raw['num_metric_views']} views (the held-out split), trained in "
                  f"{raw['train_seconds']:.0f} s ({raw['num_threads']} threads, {raw['device']}). "
                  "The paper's 3DGS on LLFF: 24.99 dB, SSIM 0.801 (its Table 2).")
     lines.append("")
