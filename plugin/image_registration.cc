@@ -4,12 +4,15 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 
 namespace watergs {
 namespace {
@@ -164,8 +167,16 @@ struct ImageRegistrar::Index {
     distinct = 0.01 * std::sqrt(spread / double(points.size()));
     matcher.clear();
     matcher.add(std::vector<cv::Mat>{descriptors});
+    // FLANN's randomised kd-trees draw from OpenCV's thread RNG: seeded
+    // here, the trees (and so every match) are a function of the index
+    // alone, the same whether it was built in this process or read from a
+    // file, and whatever drew from the RNG before.
+    const cv::RNG outer = cv::theRNG();
+    cv::theRNG() = cv::RNG(kTreeSeed);
     matcher.train();
+    cv::theRNG() = outer;
   }
+  static constexpr uint64_t kTreeSeed = 0x5eed1dc5;
 
   // Matches of query features (rows of `query`, at `positions`) to index
   // points passing Lowe's ratio test, the second neighbour being the nearest
@@ -270,6 +281,188 @@ ImageRegistrar::ImageRegistrar(const RenderCamera& reference,
       reference_(reference) {}
 
 ImageRegistrar::~ImageRegistrar() = default;
+ImageRegistrar::ImageRegistrar(ImageRegistrar&&) noexcept = default;
+ImageRegistrar& ImageRegistrar::operator=(ImageRegistrar&&) noexcept = default;
+
+namespace {
+
+// The index file (ImageRegistrar::Save): a header, the reference camera,
+// the descriptors, the points, the checksum.
+constexpr char kIndexMagic[8] = "WGSIDX1";
+constexpr uint32_t kIndexVersion = 1;
+constexpr uint32_t kFloatDescriptors = 0, kByteDescriptors = 1;
+// magic, version, encoding, features, columns, reserved.
+constexpr size_t kIndexHeaderBytes = 8 + 4 + 4 + 8 + 4 + 4;
+// width, height, fx, fy, cx, cy, R (row-major), t, near, far.
+constexpr size_t kIndexCameraBytes = 2 * 4 + (4 + 9 + 3 + 2) * 8;
+
+template <typename T>
+void Put(std::string* out, const T& value) {
+  out->append(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+// Reads the file's bytes in order; the sizes were checked before.
+class Reader {
+ public:
+  explicit Reader(const std::vector<uint8_t>& bytes) : bytes_(bytes) {}
+  template <typename T>
+  T Get() {
+    T value;
+    std::memcpy(&value, bytes_.data() + at_, sizeof(T));
+    at_ += sizeof(T);
+    return value;
+  }
+  const uint8_t* Take(size_t size) {
+    const uint8_t* p = bytes_.data() + at_;
+    at_ += size;
+    return p;
+  }
+
+ private:
+  const std::vector<uint8_t>& bytes_;
+  size_t at_ = 0;
+};
+
+bool LittleEndian() {
+  const uint16_t one = 1;
+  uint8_t first;
+  std::memcpy(&first, &one, 1);
+  return first == 1;
+}
+
+}  // namespace
+
+void ImageRegistrar::Save(const std::string& path) const {
+  if (!LittleEndian()) FailAt(path, "index files are little-endian only");
+  const cv::Mat& d = index_->descriptors;
+  const uint64_t n = index_->points.size();
+  const uint32_t columns = n == 0 ? 128 : uint32_t(d.cols);
+  bool bytes = true;  // every value an integer in [0, 255]
+  for (int r = 0; r < d.rows && bytes; ++r) {
+    const float* row = d.ptr<float>(r);
+    for (int c = 0; c < d.cols; ++c) {
+      if (!(row[c] >= 0 && row[c] <= 255 && row[c] == std::floor(row[c]))) {
+        bytes = false;
+        break;
+      }
+    }
+  }
+  std::string out;
+  out.reserve(kIndexHeaderBytes + kIndexCameraBytes +
+              n * (columns * (bytes ? 1 : 4) + 3 * 8) + 8);
+  out.append(kIndexMagic, 8);
+  Put(&out, kIndexVersion);
+  Put(&out, bytes ? kByteDescriptors : kFloatDescriptors);
+  Put(&out, n);
+  Put(&out, columns);
+  Put(&out, uint32_t(0));
+  const RenderCamera& c = reference_;
+  Put(&out, int32_t(c.width));
+  Put(&out, int32_t(c.height));
+  for (double v : {c.fx, c.fy, c.cx, c.cy}) Put(&out, v);
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) Put(&out, c.R(i, j));
+  }
+  for (int i = 0; i < 3; ++i) Put(&out, c.t(i));
+  Put(&out, c.near_plane);
+  Put(&out, c.far_plane);
+  for (int r = 0; r < d.rows; ++r) {
+    const float* row = d.ptr<float>(r);
+    for (int k = 0; k < d.cols; ++k) {
+      if (bytes) {
+        Put(&out, uint8_t(row[k]));
+      } else {
+        Put(&out, row[k]);
+      }
+    }
+  }
+  for (const cv::Point3d& X : index_->points) {
+    Put(&out, X.x);
+    Put(&out, X.y);
+    Put(&out, X.z);
+  }
+  Put(&out, Fnv1a64(out.data(), out.size()));
+  AtomicWriteFile(path, out);
+}
+
+ImageRegistrar ImageRegistrar::Load(const std::string& path,
+                                    const RegistrationOptions& options) {
+  const std::vector<uint8_t> bytes = ReadFileBytes(path);
+  const std::string what = "watergs registration index";
+  if (!bytes.empty() && std::memcmp(bytes.data(), kIndexMagic,
+                                    std::min<size_t>(bytes.size(), 8)) != 0) {
+    FailAt(path, "not a " + what + " (no WGSIDX1 header)");
+  }
+  const size_t fixed = kIndexHeaderBytes + kIndexCameraBytes + 8;
+  if (bytes.size() < fixed) {
+    FailAt(path, "truncated " + what + " (" + std::to_string(bytes.size()) +
+                     " bytes, shorter than its header)");
+  }
+  if (!LittleEndian()) FailAt(path, "index files are little-endian only");
+  Reader in(bytes);
+  in.Take(8);
+  const auto version = in.Get<uint32_t>();
+  if (version != kIndexVersion) {
+    FailAt(path, what + " of format version " + std::to_string(version) +
+                     " (this build reads version " +
+                     std::to_string(kIndexVersion) + ")");
+  }
+  const auto encoding = in.Get<uint32_t>();
+  const auto n = in.Get<uint64_t>();
+  const auto columns = in.Get<uint32_t>();
+  in.Get<uint32_t>();
+  if ((encoding != kFloatDescriptors && encoding != kByteDescriptors) ||
+      columns != 128 || n > bytes.size()) {
+    FailAt(path, "corrupted " + what + " (a header field is out of range)");
+  }
+  const size_t descriptor_bytes =
+      size_t(n) * columns * (encoding == kByteDescriptors ? 1 : 4);
+  const size_t expected = fixed + descriptor_bytes + size_t(n) * 3 * 8;
+  if (bytes.size() != expected) {
+    FailAt(path, (bytes.size() < expected ? "truncated " : "corrupted ") +
+                     what + " (" + std::to_string(bytes.size()) +
+                     " bytes where its header says " +
+                     std::to_string(expected) + ")");
+  }
+  uint64_t checksum;
+  std::memcpy(&checksum, bytes.data() + bytes.size() - 8, 8);
+  if (checksum != Fnv1a64(bytes.data(), bytes.size() - 8)) {
+    FailAt(path, "corrupted " + what + " (checksum mismatch)");
+  }
+  RenderCamera c;
+  c.width = in.Get<int32_t>();
+  c.height = in.Get<int32_t>();
+  c.fx = in.Get<double>();
+  c.fy = in.Get<double>();
+  c.cx = in.Get<double>();
+  c.cy = in.Get<double>();
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) c.R(i, j) = in.Get<double>();
+  }
+  for (int i = 0; i < 3; ++i) c.t(i) = in.Get<double>();
+  c.near_plane = in.Get<double>();
+  c.far_plane = in.Get<double>();
+  ImageRegistrar registrar(c, options);
+  Index& index = *registrar.index_;
+  if (n > 0) {
+    index.descriptors.create(int(n), int(columns), CV_32F);
+    const uint8_t* p = in.Take(descriptor_bytes);
+    if (encoding == kByteDescriptors) {
+      cv::Mat(int(n), int(columns), CV_8U, const_cast<uint8_t*>(p))
+          .convertTo(index.descriptors, CV_32F);
+    } else {
+      std::memcpy(index.descriptors.data, p, descriptor_bytes);
+    }
+  }
+  index.points.resize(size_t(n));
+  for (cv::Point3d& X : index.points) {
+    X.x = in.Get<double>();
+    X.y = in.Get<double>();
+    X.z = in.Get<double>();
+  }
+  if (n > 0) index.Train();
+  return registrar;
+}
 
 size_t ImageRegistrar::IndexSize() const { return index_->points.size(); }
 

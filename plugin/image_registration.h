@@ -8,6 +8,11 @@
 // intrinsics scaled to the query's width, then focal length and principal
 // point refined on the inliers (a crop moves the principal point, a resize
 // the focal length). OpenCV does the features, matching and geometry.
+//
+// Building the index is the slow part (SIFT on every photo and render):
+// Save writes it to a file and Load reads it back, so that `detect` indexes
+// a workspace once (its cache, WS/detect_index/) and each later call only
+// registers.
 #pragma once
 
 #include <functional>
@@ -77,6 +82,23 @@ class ImageRegistrar {
   explicit ImageRegistrar(const RenderCamera& reference,
                           const RegistrationOptions& options = {});
   ~ImageRegistrar();
+  ImageRegistrar(ImageRegistrar&&) noexcept;
+  ImageRegistrar& operator=(ImageRegistrar&&) noexcept;
+
+  // Writes the index to `path` atomically (AtomicWriteFile): the magic
+  // "WGSIDX1", a format version, the counts, the reference camera, every
+  // feature's descriptor (8 bits a value when all are SIFT's integers in
+  // [0, 255], as OpenCV's are, else 32-bit floats) and 3D point, then the
+  // FNV-1a 64 checksum of all that; little-endian. Throws Error
+  // ("<path>: ...") if it cannot be written.
+  void Save(const std::string& path) const;
+  // The registrar `Save` wrote to `path`, answering queries with `options`
+  // (those that shaped the index, associate_px and skip_views, are the
+  // saved registrar's). It registers every image exactly as the registrar
+  // saved did. A file missing, truncated, of another format or version, or
+  // whose checksum does not match throws Error("<path>: <problem>").
+  static ImageRegistrar Load(const std::string& path,
+                             const RegistrationOptions& options = {});
 
   // Adds to the index the features of renders of the raw model at `cameras`
   // (viewpoints no photo was taken from), each lifted to 3D through the

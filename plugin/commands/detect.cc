@@ -6,16 +6,23 @@
 // message and tests it exactly as `extract` aggregates its views
 // (watermark/view_aggregation.h). A verdict is a result, not an error: the
 // exit code is 0 for all of them; unusable input fails in one line naming
-// the file.
+// the file. The owner's reading (--raw_path) registers each image to an
+// index of the workspace's photos and renders, built once and cached
+// (--index_cache, default WS/detect_index/<key>.idx); every call ends with
+// one line saying where its time went (indexing, registration, refinement,
+// decoding).
 #include <omp.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -114,6 +121,100 @@ std::string Percent(double fraction) {
 // The viewpoints of --index_renders: fixed, so that a reading repeats.
 constexpr uint64_t kIndexRenderSeed = 20261128;
 
+// Part of the index cache's key: raise it when the way detect builds its
+// index changes (features, lifting, viewpoints), so that no file of the
+// old way is read.
+constexpr uint32_t kIndexKeyVersion = 1;
+
+// Seconds since `start`.
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+// The cache key's pieces, appended as bytes.
+class KeyBuilder {
+ public:
+  template <typename T>
+  void Add(const T& value) {
+    bytes_.append(reinterpret_cast<const char*>(&value), sizeof(T));
+  }
+  void Add(const std::string& text) {
+    Add(uint64_t(text.size()));
+    bytes_ += text;
+  }
+  // A file's size and FNV-1a 64 (of each 16 MiB chunk, then of those):
+  // read in chunks, so that a large model is not held twice in memory.
+  void AddFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) FailAt(path, "cannot read");
+    std::string chunk(size_t(16) << 20, '\0');
+    std::string hashes;
+    uint64_t size = 0;
+    while (in) {
+      in.read(chunk.data(), std::streamsize(chunk.size()));
+      const auto got = size_t(in.gcount());
+      if (got == 0) break;
+      size += got;
+      const uint64_t h = Fnv1a64(chunk.data(), got);
+      hashes.append(reinterpret_cast<const char*>(&h), sizeof(h));
+    }
+    Add(size);
+    Add(Fnv1a64(hashes.data(), hashes.size()));
+  }
+  uint64_t Key() const { return Fnv1a64(bytes_.data(), bytes_.size()); }
+
+ private:
+  std::string bytes_;
+};
+
+// The key of the index detect builds from these inputs: the workspace's
+// sparse model files, its views (names, file sizes, camera sizes), the raw
+// model file, and every option that shapes the index. Equal keys, equal
+// indexes.
+uint64_t IndexKey(const Workspace& workspace, const TrainingViews& views,
+                  const std::string& raw_path, int index_renders, Device device,
+                  const RegistrationOptions& registration) {
+  KeyBuilder key;
+  key.Add(std::string("watergs detect index"));
+  key.Add(kIndexKeyVersion);
+  for (const char* stem : {"cameras", "images", "points3D", "rigs", "frames"}) {
+    for (const char* extension : {".bin", ".txt"}) {
+      const std::string file = std::string(stem) + extension;
+      const fs::path path = fs::path(workspace.model_path()) / file;
+      if (!fs::is_regular_file(path)) continue;
+      key.Add(file);
+      key.AddFile(path.string());
+    }
+  }
+  const WorkspaceOptions& wo = workspace.options();
+  const std::string scaled = wo.image_path + "_" + std::to_string(wo.downscale);
+  key.Add(uint64_t(views.NumViews()));
+  for (size_t v = 0; v < views.NumViews(); ++v) {
+    key.Add(views.Name(v));
+    for (const std::string& folder : {wo.image_path, scaled}) {
+      std::error_code error;
+      const uintmax_t bytes =
+          fs::file_size(fs::path(folder) / views.Name(v), error);
+      key.Add(uint64_t(error ? 0 : bytes));
+    }
+    const RenderCamera camera = views.Camera(v);
+    key.Add(int32_t(camera.width));
+    key.Add(int32_t(camera.height));
+  }
+  key.AddFile(raw_path);
+  key.Add(int32_t(index_renders));
+  key.Add(uint64_t(kIndexRenderSeed));
+  key.Add(int32_t(wo.downscale));
+  key.Add(registration.associate_px);
+  key.Add(uint64_t(registration.skip_views.size()));
+  for (size_t v : registration.skip_views) key.Add(uint64_t(v));
+  // Renders on another device differ in their last bits, and so may the
+  // features found on them.
+  key.Add(DeviceName(device));
+  return key.Key();
+}
+
 // The owner's reading of images without a pose: each image registered to
 // the workspace, the raw model rendered at the recovered camera and decoded;
 // per image, its logits minus the render's (images that do not register are
@@ -122,11 +223,19 @@ struct OwnerImages {
   std::vector<ViewDecode> views;  // differences, registered images only
   std::vector<Registration> registrations;     // per image
   std::vector<PhotometricResult> refinements;  // per image
+  // Seconds: the index (with reading the raw model, opening the workspace
+  // and placing the model in it), registering, refining the poses, and
+  // rendering and decoding the raw model's references.
+  double indexing_s = 0, registration_s = 0, refinement_s = 0, decoding_s = 0;
+  bool index_cached = false;  // read from the cache, not built
+  std::string index_file;     // the cache file (empty without a cache)
 };
 
 struct OwnerReadingOptions {
   bool refine = true;       // --refine_pose
   int index_renders = 300;  // --index_renders
+  // --index_cache: the folder of cached indexes; empty: no cache.
+  std::string index_cache;
 };
 
 OwnerImages ReadAsOwner(const std::vector<std::string>& files,
@@ -137,6 +246,8 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
                         WorkspaceOptions workspace_options, Device device,
                         const OwnerReadingOptions& reading, BitDecoder& decoder,
                         const Bits* expected) {
+  OwnerImages out;
+  const auto indexing_start = std::chrono::steady_clock::now();
   const ModelData raw = ReadModelFile(raw_path);
   const Workspace workspace = Workspace::Open(workspace_options);
   const WorkspaceViews views(workspace);
@@ -146,7 +257,31 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
   // screenshots: 20 registered instead of 17, 17 "present" instead of 16.
   RegistrationOptions registration;
   registration.min_inliers = 8;
-  ImageRegistrar registrar(workspace, views, registration);
+  // The index cached by an earlier call on the same inputs, if any.
+  std::optional<ImageRegistrar> registrar;
+  if (!reading.index_cache.empty()) {
+    char key[17];
+    std::snprintf(key, sizeof(key), "%016llx",
+                  static_cast<unsigned long long>(
+                      IndexKey(workspace, views, raw_path,
+                               reading.index_renders, device, registration)));
+    out.index_file =
+        (fs::path(reading.index_cache) / (std::string(key) + ".idx")).string();
+    if (fs::exists(out.index_file)) {
+      const auto start = std::chrono::steady_clock::now();
+      try {
+        registrar.emplace(ImageRegistrar::Load(out.index_file, registration));
+        out.index_cached = true;
+        std::printf("detect: index read from %s (%zu features, %.1f s)\n",
+                    out.index_file.c_str(), registrar->IndexSize(),
+                    SecondsSince(start));
+      } catch (const Error& e) {
+        std::fprintf(stderr, "detect: warning: %s; indexing again\n", e.what());
+      }
+    }
+  }
+  const bool build = !registrar.has_value();
+  if (build) registrar.emplace(workspace, views, registration);
   const std::unique_ptr<Rasterizer> rasterizer = MakeRasterizer(device);
   // Images register in the photos' frame; a raw model saved in another
   // frame is rendered from the cameras moved into it.
@@ -154,15 +289,14 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
       PlaceByOption("detect", "auto", *rasterizer, raw.model, raw_path,
                     workspace, views, {0.f, 0.f, 0.f})
           .placement.workspace_to_model;
-  OwnerImages out;
   const CameraRenderer render = [&](const RenderCamera& camera) {
     return RenderClamped(*rasterizer, raw.model,
                          TransformCamera(camera, to_model), {0.f, 0.f, 0.f});
   };
-  if (reading.index_renders > 0) {
+  if (build && reading.index_renders > 0) {
     ProgressBar bar("detect: indexing renders", reading.index_renders);
     int done = 0;
-    registrar.AddRenders(
+    registrar->AddRenders(
         SampleFreeViewpoints(views, reading.index_renders, kIndexRenderSeed),
         [&](const RenderCamera& camera) {
           bar.Update(done++);
@@ -174,31 +308,54 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
           for (float& d : depth) d /= to_model.scale;  // workspace units
           return depth;
         });
-    bar.Finish(std::to_string(registrar.IndexSize()) +
+    bar.Finish(std::to_string(registrar->IndexSize()) +
                " features on the photos and renders");
   }
+  if (build && !out.index_file.empty()) {
+    // Cached for the next call; a folder that cannot be written (a
+    // read-only workspace) costs the cache, never the detection.
+    try {
+      CreateDirectories(reading.index_cache);
+      registrar->Save(out.index_file);
+      std::printf("detect: index written to %s (%zu features)\n",
+                  out.index_file.c_str(), registrar->IndexSize());
+    } catch (const Error& e) {
+      std::fprintf(stderr,
+                   "detect: warning: the index is not cached (%s); going on "
+                   "without\n",
+                   e.what());
+      out.index_file.clear();
+    }
+  }
+  out.indexing_s = SecondsSince(indexing_start);
   for (size_t k = 0; k < files.size(); ++k) {
     // The raw model's render as this file went (its size, its JPEG).
     const CameraRenderer like_file = [&](const RenderCamera& camera) {
       return RenderLikeSuspect(render, camera, processing[k]);
     };
-    Registration r = registrar.Register(images[k]);
+    auto start = std::chrono::steady_clock::now();
+    Registration r = registrar->Register(images[k]);
+    out.registration_s += SecondsSince(start);
     PhotometricResult refined;
     if (r.registered && reading.refine) {
+      start = std::chrono::steady_clock::now();
       // Every pose the matches support: the one the render fits best wins.
       std::vector<RenderCamera> starts = {r.camera, r.guessed_camera};
       starts.insert(starts.end(), r.alternatives.begin(), r.alternatives.end());
       refined = RefinePhotometrically(images[k], starts, r.depth, like_file);
       r.camera = refined.camera;
+      out.refinement_s += SecondsSince(start);
     }
     out.refinements.push_back(refined);
     if (r.registered) {
+      start = std::chrono::steady_clock::now();
       ViewDecode reference;
       reference.name = files[k];
       reference.logits = decoder.Logits(like_file(r.camera));
       std::vector<ViewDecode> one =
           DifferenceViews({decoded[k]}, {reference}, expected);
       out.views.push_back(std::move(one[0]));
+      out.decoding_s += SecondsSince(start);
     }
     out.registrations.push_back(std::move(r));
   }
@@ -206,6 +363,7 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
 }
 
 int RunDetect(int argc, char** argv) {
+  const auto run_start = std::chrono::steady_clock::now();
   std::string raw_path;
   WorkspaceOptions workspace_options;
   std::string image_path, decoder_path, message, key_option, json_path;
@@ -255,6 +413,13 @@ int RunDetect(int argc, char** argv) {
              "taken far from every photo registers to a render near it "
              "(rendered at the workspace cameras' size; detect prints how "
              "many images registered; 0 = the photos only)");
+  parser.Add("index_cache", &reading.index_cache,
+             "Folder where the registration index (the photos' and "
+             "--index_renders' features) is kept between calls, one file "
+             "per workspace, raw model and options: built once (minutes), "
+             "then read in seconds (default <workspace_path>/detect_index; "
+             "given empty, --index_cache \"\", no cache; a folder that "
+             "cannot be written only warns)");
   parser.Add("refine_pose", &reading.refine,
              "After registration, move each camera to where the raw model's "
              "render matches the image best (photometric least squares): "
@@ -287,6 +452,10 @@ int RunDetect(int argc, char** argv) {
   }
   if (num_threads > 0) omp_set_num_threads(num_threads);
   if (!json_path.empty()) CheckOutputFile(json_path);
+  if (!parser.Given("index_cache") && !raw_path.empty()) {
+    reading.index_cache =
+        (fs::path(workspace_options.workspace_path) / "detect_index").string();
+  }
 
   const std::vector<std::string> files = ImageFiles(image_path);
   const std::unique_ptr<BitDecoder> decoder =
@@ -306,6 +475,7 @@ int RunDetect(int argc, char** argv) {
   std::vector<std::pair<int, int>> sizes;
   std::vector<ImageRGB> decoded_images;       // kept for the owner's reading
   std::vector<SuspectProcessing> processing;  // for the owner's reference
+  const auto decoding_start = std::chrono::steady_clock::now();
   for (const std::string& path : files) {
     ImageRGB image = LoadImage(path, max_side);
     processing.push_back({image.width, image.height, JpegQualityOf(path)});
@@ -327,6 +497,7 @@ int RunDetect(int argc, char** argv) {
     views.push_back(std::move(view));
     if (!raw_path.empty()) decoded_images.push_back(std::move(image));
   }
+  const double decoding_s = SecondsSince(decoding_start);
   OwnerImages owner;
   if (!raw_path.empty()) {
     owner = ReadAsOwner(files, decoded_images, processing, views, raw_path,
@@ -434,6 +605,20 @@ int RunDetect(int argc, char** argv) {
       }
     }
   }
+  // Where the time went (issue 54: the index is the slow part; cached, each
+  // image costs its registration, refinement and decoding).
+  const double total_s = SecondsSince(run_start);
+  const char* index_state = raw_path.empty()     ? "none"
+                            : owner.index_cached ? "cached"
+                                                 : "built";
+  const double all_decoding_s = decoding_s + owner.decoding_s;
+  const double per_image_s =
+      total_s / double(std::max<size_t>(1, files.size()));
+  std::printf(
+      "detect: time: indexing %.1f s (%s), registration %.1f s, refinement "
+      "%.1f s, decoding %.1f s over %zu images (%.1f s an image)\n",
+      owner.indexing_s, index_state, owner.registration_s, owner.refinement_s,
+      all_decoding_s, files.size(), per_image_s);
   if (!json_path.empty()) {
     // extract's JSON, with each image's bits, logits, p-value and verdict,
     // and the whole single-image BER distribution.
@@ -500,6 +685,15 @@ int RunDetect(int argc, char** argv) {
       o["registrations"] = reg;
       j["owner"] = o;
     }
+    j["time"] = {{"indexing_s", owner.indexing_s},
+                 {"index", index_state},
+                 {"index_file", owner.index_file},
+                 {"registration_s", owner.registration_s},
+                 {"refinement_s", owner.refinement_s},
+                 {"decoding_s", all_decoding_s},
+                 {"images", files.size()},
+                 {"per_image_s", per_image_s},
+                 {"total_s", total_s}};
     j["provenance"] = Provenance(argc, argv);
     AtomicWriteFile(json_path, j.dump(2) + "\n");
   }

@@ -2,10 +2,12 @@
 // model written as PNG files give "watermark present" for the owner's claim
 // and each image the bits `extract` reads from the same camera; renders of
 // the raw model do not; JSON; and each unusable input fails in one line
-// naming the file.
+// naming the file. The owner's reading's registration index is cached
+// beside the workspace and read back by the next call (issue 54, item 4).
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -14,6 +16,7 @@
 #include <vector>
 
 #include "gaussian/formats/ply_io.h"
+#include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
 #include "plugin/image_file.h"
 #include "plugin/training_views.h"
@@ -168,6 +171,157 @@ TEST(DetectCli, ReadsTheWatermarkFromRenderedImagesAsExtractDoes) {
   ASSERT_EQ(mixed.exit_code, 0) << mixed.output;
   EXPECT_NE(mixed.output.find("detect: 7 images"), std::string::npos)
       << mixed.output;
+}
+
+// The lines of `output` that start with `prefix`.
+std::vector<std::string> LinesStartingWith(const std::string& output,
+                                           const std::string& prefix) {
+  std::vector<std::string> lines;
+  size_t start = 0;
+  while (start < output.size()) {
+    size_t end = output.find('\n', start);
+    if (end == std::string::npos) end = output.size();
+    const std::string line = output.substr(start, end - start);
+    if (line.rfind(prefix, 0) == 0) lines.push_back(line);
+    start = end + 1;
+  }
+  return lines;
+}
+
+// The files in `folder` (none if it does not exist).
+std::vector<std::string> FilesIn(const std::string& folder) {
+  std::vector<std::string> names;
+  if (!std::filesystem::is_directory(folder)) return names;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+    names.push_back(entry.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+// The owner's reading indexes the workspace once: the first call builds the
+// registration index and writes it to WS/detect_index/<key>.idx, the second
+// reads it and gives the same reading to the last bit, writing nothing; a
+// changed raw model is another key; a folder that cannot be written only
+// warns; every call prints where its time went.
+TEST(DetectCli, TheOwnersIndexIsCachedBesideTheWorkspaceAndReadBack) {
+  TempDir dir("detect_cli_cache");
+  // A synthetic workspace whose photos are renders of the raw model with
+  // small Gaussians (a blob on each SfM point, where SIFT finds a feature),
+  // and those renders as the images.
+  testing::SyntheticModelOptions options;
+  options.num_images = 6;
+  options.num_points = 300;
+  options.width = 160;
+  options.height = 120;
+  GaussianModel raw;
+  const std::string ws =
+      testing::MakeRenderedWorkspace(dir / "ws", options, &raw);
+  for (float& s : raw.log_scales) s -= 1.0f;
+  WritePly(dir / "raw.ply", raw);
+  WorkspaceOptions wo;
+  wo.workspace_path = ws;
+  const Workspace workspace = Workspace::Open(wo);
+  const std::vector<ImageRGB> renders = testing::RenderViews(raw, workspace);
+  for (size_t v = 0; v < renders.size(); ++v) {
+    WritePng(ws + "/images/" + workspace.ViewName(v), renders[v]);
+  }
+  WritePngs({renders[1], renders[3], renders[4]}, dir / "photos");
+  const std::string pngs = dir / "photos";
+  const std::string decoder = testing::WriteTinyDecoder(dir / "tiny.bin");
+  const std::string base =
+      WatergsBin() + " detect --decoder " + decoder + " --image_path " + pngs +
+      " --message hex:a5c3" + " --raw_path " + (dir / "raw.ply") +
+      " --workspace_path " + ws + " --index_renders 4 --num_threads 2";
+  const std::string cache = ws + "/detect_index";
+
+  const auto first = RunCommand(base + " --json " + (dir / "first.json"));
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  EXPECT_NE(first.output.find("detect: index written to " + cache + "/"),
+            std::string::npos)
+      << first.output;
+  const std::vector<std::string> files = FilesIn(cache);
+  ASSERT_EQ(files.size(), 1u);
+  EXPECT_EQ(files[0].size(), 16u + 4u) << files[0];  // <key hex>.idx
+  const std::vector<uint8_t> index = ReadFileBytes(cache + "/" + files[0]);
+  const auto modified =
+      std::filesystem::last_write_time(cache + "/" + files[0]);
+  EXPECT_NE(first.output.find("detect: time: indexing "), std::string::npos);
+  EXPECT_NE(first.output.find(" s (built), registration "), std::string::npos)
+      << first.output;
+
+  const auto second = RunCommand(base + " --json " + (dir / "second.json"));
+  ASSERT_EQ(second.exit_code, 0) << second.output;
+  EXPECT_NE(second.output.find("detect: index read from " + cache + "/" +
+                               files[0] + " ("),
+            std::string::npos)
+      << second.output;
+  EXPECT_EQ(second.output.find("index written"), std::string::npos);
+  EXPECT_EQ(second.output.find("indexing renders"), std::string::npos);
+  const std::vector<std::string> time_lines =
+      LinesStartingWith(second.output, "detect: time: ");
+  ASSERT_EQ(time_lines.size(), 1u) << second.output;
+  EXPECT_NE(time_lines[0].find(" s (cached), registration "), std::string::npos)
+      << time_lines[0];
+  EXPECT_NE(time_lines[0].find(" over 3 images ("), std::string::npos)
+      << time_lines[0];
+  // Nothing else written: the one file, as it was.
+  EXPECT_EQ(FilesIn(cache), files);
+  EXPECT_EQ(ReadFileBytes(cache + "/" + files[0]), index);
+  EXPECT_EQ(std::filesystem::last_write_time(cache + "/" + files[0]), modified);
+  // The same reading, to the last bit: verdicts, bit errors, cameras,
+  // logits.
+  EXPECT_EQ(LinesStartingWith(second.output, "detect (owner's reading)"),
+            LinesStartingWith(first.output, "detect (owner's reading)"));
+  const nlohmann::json a = ReadJson(dir / "first.json");
+  const nlohmann::json b = ReadJson(dir / "second.json");
+  ASSERT_TRUE(a["owner"].contains("registrations"));
+  int registered = 0;
+  for (const auto& r : a["owner"]["registrations"])
+    registered += r["registered"].get<bool>();
+  EXPECT_GE(registered, 1) << a["owner"].dump();
+  EXPECT_EQ(a["owner"], b["owner"]);
+  EXPECT_EQ(a["views"], b["views"]);
+  EXPECT_EQ(a["time"]["index"], "built");
+  EXPECT_EQ(b["time"]["index"], "cached");
+  EXPECT_EQ(b["time"]["index_file"], cache + "/" + files[0]);
+  EXPECT_EQ(b["time"]["images"], 3);
+  for (const char* figure : {"indexing_s", "registration_s", "refinement_s",
+                             "decoding_s", "per_image_s", "total_s"}) {
+    EXPECT_GE(b["time"][figure].get<double>(), 0) << figure;
+  }
+
+  // Another raw model (one Gaussian's colour changed): another key, a new
+  // file beside the first.
+  GaussianModel changed = raw;
+  changed.sh_dc[0] += 0.01f;
+  WritePly(dir / "raw.ply", changed);
+  // (Without the pose refinement from here on: quicker.)
+  const std::string quick = base + " --refine_pose 0";
+  const auto third = RunCommand(quick);
+  ASSERT_EQ(third.exit_code, 0) << third.output;
+  EXPECT_NE(third.output.find("detect: index written to"), std::string::npos)
+      << third.output;
+  EXPECT_EQ(FilesIn(cache).size(), 2u);
+
+  // A cache folder that cannot be created: one warning, the same reading.
+  const std::string blocked = dir / "raw.ply/cache";
+  const auto unwritable = RunCommand(quick + " --index_cache " + blocked);
+  ASSERT_EQ(unwritable.exit_code, 0) << unwritable.output;
+  EXPECT_EQ(LinesStartingWith(unwritable.output, "detect: warning: ").size(),
+            1u)
+      << unwritable.output;
+  EXPECT_NE(unwritable.output.find("the index is not cached"),
+            std::string::npos)
+      << unwritable.output;
+  EXPECT_EQ(LinesStartingWith(unwritable.output, "detect (owner's reading)"),
+            LinesStartingWith(third.output, "detect (owner's reading)"));
+  // Empty: no cache at all.
+  const auto uncached = RunCommand(quick + " --index_cache \"\"");
+  ASSERT_EQ(uncached.exit_code, 0) << uncached.output;
+  EXPECT_EQ(uncached.output.find("detect: index "), std::string::npos)
+      << uncached.output;
+  EXPECT_EQ(FilesIn(cache).size(), 2u);
 }
 
 TEST(DetectCli, RefusesUnusableInputInOneLineNamingTheFile) {

@@ -2,7 +2,7 @@
 // on the embedded demo scene: a photo left out of the index, the same photo
 // cropped or shrunk (the copies a leak holds), and an image of nothing; and
 // an index of renders only (AddRenders), on a textured room whose geometry
-// is known.
+// is known; the index written to a file and read back (detect's cache).
 #include "plugin/image_registration.h"
 
 #include <gtest/gtest.h>
@@ -11,14 +11,18 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <fstream>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "gaussian/depth_render.h"
 #include "gaussian/rasterizer.h"
+#include "gaussian/util/error.h"
+#include "gaussian/util/file_util.h"
 #include "plugin/training_views.h"
 #include "tests/common/flat_gaussians.h"
+#include "tests/plugin/synthetic_model.h"
 #include "watermark/image_attacks.h"
 
 namespace watergs {
@@ -140,6 +144,115 @@ TEST(ImageRegistration, AnImageOfNothingIsNotRegisteredAndSaysWhy) {
   const Registration flat = registrar.Register(ImageRGB(240, 180));
   EXPECT_FALSE(flat.registered);
   EXPECT_EQ(flat.matches, 0);
+}
+
+// Every field of two cameras equal, to the last bit.
+void ExpectSameCamera(const RenderCamera& a, const RenderCamera& b,
+                      const std::string& what) {
+  EXPECT_EQ(a.width, b.width) << what;
+  EXPECT_EQ(a.height, b.height) << what;
+  EXPECT_EQ(a.fx, b.fx) << what;
+  EXPECT_EQ(a.fy, b.fy) << what;
+  EXPECT_EQ(a.cx, b.cx) << what;
+  EXPECT_EQ(a.cy, b.cy) << what;
+  EXPECT_EQ(a.R, b.R) << what;
+  EXPECT_EQ(a.t, b.t) << what;
+}
+
+// The index written by Save and read by Load registers images exactly as
+// the registrar that wrote it: detect reads its index from a cache and must
+// read the same bits as when it built it.
+TEST(ImageRegistration, AnIndexReadBackRegistersExactlyAsTheOneSaved) {
+  DemoWorkspace d;
+  RegistrationOptions options;
+  options.skip_views = {21};
+  const ImageRegistrar built(d.workspace, d.views, options);
+  testing::TempDir dir("registration_index");
+  const std::string path = dir / "index.idx";
+  built.Save(path);
+  const ImageRegistrar read = ImageRegistrar::Load(path, options);
+  EXPECT_EQ(read.IndexSize(), built.IndexSize());
+  // SIFT's descriptors are integers in [0, 255]: one byte each on disk.
+  EXPECT_LT(ReadFileBytes(path).size(), built.IndexSize() * (128 + 24 + 1));
+
+  const ImageRGB photo = *d.views.Image(21);
+  ImageAttackSpec crop{ImageAttackKind::kCrop, 0.8};
+  const std::vector<std::pair<std::string, ImageRGB>> queries = {
+      {"photo", photo}, {"cropped", ApplyImageAttack(crop, photo)}};
+  for (const auto& [what, image] : queries) {
+    const Registration a = built.Register(image);
+    const Registration b = read.Register(image);
+    ASSERT_TRUE(a.registered) << what << ": " << a.why;
+    ASSERT_TRUE(b.registered) << what << ": " << b.why;
+    EXPECT_EQ(a.matches, b.matches) << what;
+    EXPECT_EQ(a.inliers, b.inliers) << what;
+    EXPECT_EQ(a.rms_px, b.rms_px) << what;
+    EXPECT_EQ(a.depth, b.depth) << what;
+    ExpectSameCamera(a.camera, b.camera, what);
+    ExpectSameCamera(a.guessed_camera, b.guessed_camera, what + " guessed");
+    ASSERT_EQ(a.alternatives.size(), b.alternatives.size()) << what;
+    for (size_t k = 0; k < a.alternatives.size(); ++k) {
+      ExpectSameCamera(a.alternatives[k], b.alternatives[k], what + " alt");
+    }
+  }
+  // Written again, the index read back is the same file.
+  read.Save(dir / "again.idx");
+  EXPECT_EQ(ReadFileBytes(dir / "again.idx"), ReadFileBytes(path));
+}
+
+// Load refuses, in one line "<path>: <problem>", a file that is not an
+// index, is cut short or was changed (a bit flipped anywhere: the
+// checksum).
+TEST(ImageRegistration, AnIndexFileCutOrCorruptedIsRefusedInOneLineNamingIt) {
+  DemoWorkspace d;
+  testing::TempDir dir("registration_index_bad");
+  const std::string good = dir / "good.idx";
+  ImageRegistrar(d.workspace, d.views).Save(good);
+  const std::vector<uint8_t> bytes = ReadFileBytes(good);
+  ASSERT_GT(bytes.size(), 10000u);
+  const auto write = [&](const std::string& name,
+                         const std::vector<uint8_t>& content) {
+    const std::string path = dir / name;
+    std::ofstream(path, std::ios::binary)
+        .write(reinterpret_cast<const char*>(content.data()),
+               std::streamsize(content.size()));
+    return path;
+  };
+  const auto expect_refused = [](const std::string& path,
+                                 const std::string& problem) {
+    try {
+      ImageRegistrar::Load(path);
+      ADD_FAILURE() << path << " was read";
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
+      EXPECT_NE(message.find(problem), std::string::npos) << message;
+      EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    }
+  };
+  expect_refused(dir / "missing.idx", "");
+  const auto cut = [&](size_t size) {
+    return std::vector<uint8_t>(bytes.begin(), bytes.begin() + size);
+  };
+  expect_refused(write("half.idx", cut(bytes.size() / 2)), "truncated");
+  expect_refused(write("last_byte.idx", cut(bytes.size() - 1)), "truncated");
+  expect_refused(write("header.idx", cut(12)), "truncated");
+  expect_refused(write("empty.idx", {}), "truncated");
+  const std::string text = "not an index\n";
+  expect_refused(write("text.idx", {text.begin(), text.end()}),
+                 "not a watergs registration index");
+  // One bit changed in a descriptor, in a point, in the checksum itself.
+  for (const size_t at :
+       {bytes.size() / 3, bytes.size() - 20, bytes.size() - 1}) {
+    std::vector<uint8_t> changed = bytes;
+    changed[at] ^= 0x10;
+    expect_refused(write("changed.idx", changed), "checksum mismatch");
+  }
+  std::vector<uint8_t> newer = bytes;
+  newer[8] = 2;  // the format version
+  expect_refused(write("newer.idx", newer), "format version 2");
+  // The good file still reads.
+  EXPECT_GT(ImageRegistrar::Load(good).IndexSize(), 1000u);
 }
 
 // A room of Gaussians: four walls 3 units from the origin and a floor, each
