@@ -194,6 +194,7 @@ DETECT = "results/owner_reading/detect_probe.txt"
 NULL = "results/owner_reading/owner_null.md"
 BLIND = "results/blind_designs/results.txt"
 LEGO = "results/nerf_synthetic_lego/tables.md"
+BOTH = "results/reading_both/results.txt"
 LEGO_RAW = "results/nerf_synthetic_lego/raw.log"
 EMBED_1M = "results/embed_1m/synthetic_1m_defaults.log"
 FAST_LOADED = "results/testing/fast_tier_3feac90.txt"
@@ -518,6 +519,14 @@ CLAIMS = [
           cell(LEGO, ("owner_seed0", "owner"), FROM_RAW), cell(LEGO, ("blind_seed0", "blind"), FROM_RAW),
           cell(LEGO, ("owner_seed0", "owner"), RAW_PSNR, 0), cell(LEGO, ("owner_seed0", "owner"), RAW_PSNR, 1),
           cell(LEGO, ("blind_seed0", "blind"), RAW_PSNR, 1)),
+    Claim("(`--pool 2 --highpass 2`) one held-out view reads {}% and one free viewpoint {}% at {} dB\n(`residual2_pool2_inria`)",
+          probe("residual2_pool2_inria", "held", BLIND), grep(BLIND, r"^residual2_pool2_inria\s.*?\| free\s+([\d.]+)%"),
+          probe("residual2_pool2_inria", "vs raw", BLIND)),
+    Claim("at `--blind_weight 1` the owner reads one held-out view at {}%\nand a reader without the raw model finds the "
+          "message over the 48 cameras ({} of 48 bits wrong,\n\"present\") at {} dB from the raw renders",
+          probe("both_w1_m0", "owner held", BOTH),
+          grep("results/reading_both/runs/both_w1_m0/all48.txt", r"aggregated over the 48 views .*\((\d+) of 48 bits\)"),
+          probe("both_w1_m0", "vs raw", BOTH)),
 ]
 
 
