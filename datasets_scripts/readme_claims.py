@@ -195,6 +195,8 @@ NULL = "results/owner_reading/owner_null.md"
 BLIND = "results/blind_designs/results.txt"
 LEGO = "results/nerf_synthetic_lego/tables.md"
 BOTH = "results/reading_both/results.txt"
+LEGO_OWNER = ("owner_seed0", "owner_seed1", "owner_seed2")
+LEGO_BLIND = ("blind_seed0", "blind_seed1", "blind_seed2")
 LEGO_RAW = "results/nerf_synthetic_lego/raw.log"
 EMBED_1M = "results/embed_1m/synthetic_1m_defaults.log"
 FAST_LOADED = "results/testing/fast_tier_3feac90.txt"
@@ -504,21 +506,22 @@ CLAIMS = [
           probe("pool2_lr02_mse50", "held", BLIND), probe("pool2_lr02_mse50", "vs raw", BLIND),
           probe("blind_lr02_mse50_m3", "held"), probe("blind_lr02_mse50_m3", "vs raw")),
     Claim("| **NeRF-synthetic lego** (`transforms_importer`: {} training and {} test views at 200x200 on white, {} random "
-          "initial points; raw {} Gaussians), seed 0 | as the owner {}% ({}) per test view / 48 free viewpoints {}%; "
-          "`--reading blind`, the anchors' reading: {}% ({}) / {}%, Table 1 blind per image identity/gn/dropout/crop "
-          "{} / {} / {} / {}%",
+          "initial points; raw {} Gaussians), seeds 0-2 | as the owner {} / {} / {}% per test view / 48 free viewpoints "
+          "{}-{}%; `--reading blind`, the anchors' reading: Table 1 blind per image identity {} / {} / {}%, gn {}-{}%, "
+          "dropout {}-{}%, crop {}-{}%; free viewpoints {}-{}%",
           grep(LEGO_RAW, r"^train: (\d+) training views, (\d+) held out, \d+x\d+, (\d+) SfM points"),
           grep(LEGO, r"^Raw model: (\d+) Gaussians"),
-          *single_views(LEGO, ("owner_seed0",), "held-out mean", 0), *single_views(LEGO, ("owner_seed0",), "held-out mean", 1),
-          *single_views(LEGO, ("owner_seed0",), "free mean", 0),
-          *single_views(LEGO, ("blind_seed0",), "held-out mean", 0, "blind"),
-          *single_views(LEGO, ("blind_seed0",), "held-out mean", 1, "blind"),
-          *single_views(LEGO, ("blind_seed0",), "free mean", 0, "blind"),
-          *table1(LEGO, ("blind_seed0",), reading="blind")),
-    Claim("| owner {}; blind {} dB | {} -> {} / {} |",
-          cell(LEGO, ("owner_seed0", "owner"), FROM_RAW), cell(LEGO, ("blind_seed0", "blind"), FROM_RAW),
-          cell(LEGO, ("owner_seed0", "owner"), RAW_PSNR, 0), cell(LEGO, ("owner_seed0", "owner"), RAW_PSNR, 1),
-          cell(LEGO, ("blind_seed0", "blind"), RAW_PSNR, 1)),
+          *single_views(LEGO, LEGO_OWNER, "held-out mean", 0),
+          span(*single_views(LEGO, LEGO_OWNER, "free mean", 0)),
+          *table1(LEGO, LEGO_BLIND, ("identity",), reading="blind"),
+          *[span(*table1(LEGO, LEGO_BLIND, (a,), reading="blind")) for a in ("gn:0.01", "dropout:0.1", "crop:0.1")],
+          span(*single_views(LEGO, LEGO_BLIND, "free mean", 0, "blind"))),
+    Claim("| owner {} / {} / {}; blind {} / {} / {} dB | {} -> {}-{} / {}-{} |",
+          *[cell(LEGO, (r, "owner"), FROM_RAW) for r in LEGO_OWNER],
+          *[cell(LEGO, (r, "blind"), FROM_RAW) for r in LEGO_BLIND],
+          cell(LEGO, ("owner_seed0", "owner"), RAW_PSNR, 0),
+          span(*[cell(LEGO, (r, "owner"), RAW_PSNR, 1) for r in LEGO_OWNER]),
+          span(*[cell(LEGO, (r, "blind"), RAW_PSNR, 1) for r in LEGO_BLIND])),
     Claim("(`--pool 2 --highpass 2`) one held-out view reads {}% and one free viewpoint {}% at {} dB\n(`residual2_pool2_inria`)",
           probe("residual2_pool2_inria", "held", BLIND), grep(BLIND, r"^residual2_pool2_inria\s.*?\| free\s+([\d.]+)%"),
           probe("residual2_pool2_inria", "vs raw", BLIND)),
