@@ -8,7 +8,10 @@
 #   datasets_scripts/blind_decoder_designs.sh OUT CORPUS DESIGN
 # POINTS (environment, default "inria lr02_mse50") chooses the points; POINTS= builds and measures
 # the decoder only.
-# DESIGN: shipped | steerable256 | residual2 | pool2 | pool1 | residual2_pool2 | residual2_steerable256
+# DESIGN: shipped | steerable256 | residual2 | pool2 | pool1 | residual2_pool2 | residual2_pool2_blur2 |
+#   residual2_pool2_scenes | residual2_steerable256 (blur2: calibrated on photo crops blurred by
+#   sigma uniform in [0, 2] px; scenes: on the corpus's photos and every third image of
+#   SCENE_RENDERS, renders of training scenes that are never judged with this decoder)
 # Writes OUT/DESIGN/{decoder.bin,make_decoder.json,lean.json,raw_blind.json} and appends the
 # embedding points to OUT/results.txt (labels DESIGN_POINT).
 set -euo pipefail
@@ -24,6 +27,8 @@ case "$design" in
   pool2) options=(--pool 2) ;;
   pool1) options=(--pool 1) ;;
   residual2_pool2) options=(--highpass 2 --pool 2) ;;
+  residual2_pool2_blur2) options=(--highpass 2 --pool 2 --calibration_blur 2) ;;
+  residual2_pool2_scenes) options=(--highpass 2 --pool 2) ;;
   residual2_steerable256) options=(--highpass 2 --steerable_subspace 256) ;;
   *) echo "blind_decoder_designs: unknown design '$design'" >&2; exit 2 ;;
 esac
@@ -31,7 +36,15 @@ decoder="$dir/decoder.bin"
 if [ "$design" = shipped ]; then
   decoder="$root/watermark/models/decoder_48.bin"
 elif [ ! -f "$decoder" ]; then
-  "$bin" make_decoder --image_path "$corpus/train" --validation_path "$corpus/heldout" \
+  calibration="$corpus/train"
+  if [ "$design" = residual2_pool2_scenes ]; then
+    renders=${SCENE_RENDERS:?residual2_pool2_scenes needs SCENE_RENDERS (renders of training scenes)}
+    calibration="$dir/calibration"; rm -rf "$calibration"; mkdir -p "$calibration"
+    for f in "$corpus"/train/*; do ln -s "$(readlink -f "$f")" "$calibration/photo_$(basename "$f")"; done
+    find "$renders" -maxdepth 1 -name '*.png' | sort | awk 'NR % 3 == 1' | while read -r f; do
+      ln -s "$(readlink -f "$f")" "$calibration/render_$(basename "$f")"; done
+  fi
+  "$bin" make_decoder --image_path "$calibration" --validation_path "$corpus/heldout" \
     --output_path "$dir/tmp.bin" --json "$dir/make_decoder.json" "${options[@]}" > "$dir/make_decoder.log"
   mv "$dir/tmp.bin" "$decoder"
 fi

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "gaussian/util/error.h"
@@ -178,6 +179,21 @@ std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
   return crops;
 }
 
+void BlurCropsRandomly(std::vector<ImageRGB>* crops, double max_sigma,
+                       uint32_t seed) {
+  if (!(max_sigma >= 0) || max_sigma > 64)
+    Fail("make_decoder: --calibration_blur must be in [0, 64] pixels");
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> sigma_of(0.0, max_sigma);
+  for (ImageRGB& crop : *crops) {
+    const double sigma = sigma_of(rng);
+    if (sigma < 0.05) continue;
+    cv::Mat view(crop.height, crop.width, CV_32FC3, crop.data.data());
+    cv::GaussianBlur(view, view, cv::Size(0, 0), sigma, sigma,
+                     cv::BORDER_REFLECT101);
+  }
+}
+
 std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
     const std::vector<cv::Mat>& photos,
     const FeatureCalibrationOptions& options,
@@ -200,15 +216,20 @@ std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(
     Fail(
         "make_decoder: the steerable subspace must hold between num_bits "
         "and channels directions");
+  // The crops the statistics are taken over, render-like when asked.
+  const auto calibration_crops = [&](int count, uint32_t seed) {
+    std::vector<ImageRGB> crops =
+        SamplePhotoCrops(photos, options.crop, count, seed);
+    if (options.calibration_blur > 0)
+      BlurCropsRandomly(&crops, options.calibration_blur, seed + 1000);
+    return crops;
+  };
   auto net = std::make_unique<FeatureNet>(config, options.seed);
   StandardiseConvolution(
-      SamplePhotoCrops(photos, options.crop, options.normalisation_crops,
-                       options.seed + 1),
+      calibration_crops(options.normalisation_crops, options.seed + 1),
       net.get());
-  const MatrixXd features =
-      PooledFeatures(SamplePhotoCrops(photos, options.crop,
-                                      options.feature_crops, options.seed + 2),
-                     net.get());
+  const MatrixXd features = PooledFeatures(
+      calibration_crops(options.feature_crops, options.seed + 2), net.get());
   const VectorXd mean = features.colwise().mean();
   const MatrixXd centred = features.rowwise() - mean.transpose();
   const MatrixXd covariance =

@@ -39,6 +39,12 @@ struct FeatureCalibrationOptions {
   // uncorrelated and of standard deviation logit_scale on photos.
   int steerable_subspace = 0;
   int steering_crops = 16;
+  // 0: photo crops as they are. S > 0: each calibration crop blurred by a
+  // Gaussian of standard deviation drawn uniformly from [0, S] pixels, so
+  // that the whitening also covers how smooth renders vary (a 3DGS render
+  // is softer than a photo; directions photos never move are amplified by
+  // the whitening and lean on renders).
+  double calibration_blur = 0;
   // Seeds the convolution, the crops and the projection.
   uint32_t seed = 0;
 };
@@ -58,6 +64,12 @@ struct FeatureCalibrationReport {
 // skipped (Error if none is large enough).
 std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
                                        int crop, int count, uint32_t seed);
+
+// `crops` each blurred in place by a Gaussian of standard deviation drawn
+// uniformly from [0, max_sigma] pixels (deterministic from `seed`; sigmas
+// under 0.05 leave a crop as it is).
+void BlurCropsRandomly(std::vector<ImageRGB>* crops, double max_sigma,
+                       uint32_t seed);
 
 // The calibrated network.
 std::unique_ptr<FeatureNet> CalibrateFeatureDecoder(

@@ -100,6 +100,10 @@ int RunMakeDecoder(int argc, char** argv) {
              "directions within the K most steerable ones");
   parser.Add("steering_crops", &options.steering_crops,
              "Photo crops the steerable directions are found on");
+  parser.Add("calibration_blur", &options.calibration_blur,
+             "0: calibrate on the photos as they are; S: each calibration "
+             "crop blurred by a Gaussian of sigma uniform in [0, S] pixels "
+             "(render-like: renders are softer than photos)");
   parser.Add("logit_scale", &options.logit_scale,
              "logit standard deviation on the calibration crops");
   parser.Add("balance_crops", &balance_crops,
@@ -122,6 +126,8 @@ int RunMakeDecoder(int argc, char** argv) {
     Fail("--whiten_floor must be in (0, 1)");
   if (!(options.logit_scale > 0 && options.logit_scale < 1e3))
     Fail("--logit_scale must be in (0, 1000)");
+  if (!(options.calibration_blur >= 0 && options.calibration_blur <= 64))
+    Fail("--calibration_blur must be in [0, 64] pixels");
   // Refuse before the work: an output that is an input photo folder.
   if (watergs::SamePath(output_path, image_path))
     Fail("--output_path " + output_path + " is the photo folder");
@@ -155,6 +161,7 @@ int RunMakeDecoder(int argc, char** argv) {
        << ", \"pool\": " << options.config.pool
        << ", \"kernel\": " << options.config.kernel
        << ", \"highpass\": " << options.config.highpass
+       << ", \"calibration_blur\": " << options.calibration_blur
        << ", \"photos\": " << report.photos_used
        << ", \"feature_crops\": " << options.feature_crops
        << ", \"floored_eigenvalues\": " << report.floored_eigenvalues;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <random>
@@ -217,6 +218,60 @@ TEST(FeatureDecoderCalibrationTest, LogitsAreWhiteOnTheCalibrationCrops) {
   EXPECT_LT(
       (cov - s2 * Eigen::MatrixXd::Identity(bits, bits)).cwiseAbs().maxCoeff(),
       1e-3 * s2);
+}
+
+// Largest deviation of the logits' mean and covariance on `crops` from the
+// white target (zero mean, covariance s^2 I), relative to s and s^2.
+std::pair<double, double> WhitenessError(FeatureDecoder& decoder,
+                                         const std::vector<ImageRGB>& crops,
+                                         int bits, double scale) {
+  Eigen::MatrixXd z(crops.size(), bits);
+  for (size_t i = 0; i < crops.size(); ++i) {
+    const std::vector<float> logits = decoder.Logits(crops[i]);
+    for (int b = 0; b < bits; ++b) z(i, b) = logits[b];
+  }
+  const Eigen::RowVectorXd mean = z.colwise().mean();
+  const Eigen::MatrixXd centred = z.rowwise() - mean;
+  const Eigen::MatrixXd cov = centred.transpose() * centred / (z.rows() - 1);
+  const double s2 = scale * scale;
+  return {
+      mean.cwiseAbs().maxCoeff() / scale,
+      (cov - s2 * Eigen::MatrixXd::Identity(bits, bits)).cwiseAbs().maxCoeff() /
+          s2};
+}
+
+// --calibration_blur: the whitening is taken over blurred crops, so the
+// logits are white on exactly those (and a decoder calibrated on sharp
+// crops is not: the option changes what "unmarked" looks like to it).
+TEST(FeatureDecoderCalibrationTest, BlurredCalibrationIsWhiteOnBlurredCrops) {
+  const std::vector<cv::Mat> photos = LoadPhotoFolder(kPhotos);
+  FeatureCalibrationOptions options = SmallCalibration();
+  options.calibration_blur = 3.0;
+  FeatureDecoder blurred(CalibrateFeatureDecoder(photos, options));
+  FeatureDecoder sharp(CalibrateFeatureDecoder(photos, SmallCalibration()));
+  std::vector<ImageRGB> crops = SamplePhotoCrops(
+      photos, options.crop, options.feature_crops, options.seed + 2);
+  const std::vector<ImageRGB> originals = crops;
+  BlurCropsRandomly(&crops, options.calibration_blur, options.seed + 2 + 1000);
+  int changed = 0;
+  for (size_t i = 0; i < crops.size(); ++i)
+    changed += crops[i].data != originals[i].data;
+  EXPECT_GT(changed, int(crops.size()) * 9 / 10);
+  const int bits = options.config.num_bits;
+  const auto [mean_error, cov_error] =
+      WhitenessError(blurred, crops, bits, options.logit_scale);
+  EXPECT_LT(mean_error, 1e-3);
+  EXPECT_LT(cov_error, 1e-3);
+  const auto [sharp_mean_error, sharp_cov_error] =
+      WhitenessError(sharp, crops, bits, options.logit_scale);
+  EXPECT_GT(std::max(sharp_mean_error, sharp_cov_error), 0.05);
+  // Sigma 0 leaves every crop as it was; out-of-range sigmas are refused.
+  std::vector<ImageRGB> untouched = originals;
+  BlurCropsRandomly(&untouched, 0.0, 7);
+  for (size_t i = 0; i < untouched.size(); ++i)
+    EXPECT_EQ(untouched[i].data, originals[i].data);
+  EXPECT_THROW(BlurCropsRandomly(&untouched, -1.0, 7), Error);
+  EXPECT_THROW(BlurCropsRandomly(&untouched, std::nan(""), 7), Error);
 }
 
 TEST(FeatureDecoderCalibrationTest, DeterministicForASeed) {
