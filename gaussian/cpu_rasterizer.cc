@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <string>
 
@@ -71,14 +72,22 @@ Splat MakeSplat(const ProjectedGaussian& p, float opacity) {
 }
 
 // Clamped colour of Gaussian i into s->color; returns the clamped-bit mask.
+// With `clamp_base`, the base colour 0.5 + C0 DC is clamped to [0, 1]
+// before the higher bands are added.
 uint8_t ShadeSplat(const GaussianModel& model, size_t i, int degree,
-                   const ProjectionCamera& cam, Splat* s) {
+                   bool clamp_base, const ProjectionCamera& cam, Splat* s) {
   const float* m = &model.means[3 * i];
   const double dir[3] = {m[0] - cam.center[0], m[1] - cam.center[1],
                          m[2] - cam.center[2]};
   double rgb[3];
   ShColorUnclamped(degree, &model.sh_dc[3 * i],
                    model.sh_rest.data() + i * model.sh_rest_stride(), dir, rgb);
+  if (clamp_base) {
+    for (int ch = 0; ch < 3; ++ch) {
+      const double base = kShC0 * model.sh_dc[3 * i + ch] + 0.5;
+      rgb[ch] += std::clamp(base, 0.0, 1.0) - base;
+    }
+  }
   uint8_t clamped = 0;
   for (int ch = 0; ch < 3; ++ch) {
     if (!(rgb[ch] >= 0)) clamped |= uint8_t(1u << ch);
@@ -97,6 +106,22 @@ size_t CpuRenderContext::Bytes() const {
              sizeof(uint32_t) +
          blend.final_T.capacity() * sizeof(float) +
          blend.n_contrib.capacity() * sizeof(uint32_t) + visible.capacity();
+}
+
+void CheckRenderConventions(const RenderConventions& conventions) {
+  const double cull = conventions.cull_centre_outside;
+  if (!(cull == 0 || (cull > 0 && std::isfinite(cull)))) {
+    Fail(
+        "render: the centre cull must be 0 (none) or a positive multiple "
+        "of the frame");
+  }
+  if (conventions.extent_cap_px < 0) {
+    Fail("render: the extent cap must be 0 (none) or positive pixels");
+  }
+  const double dilation = conventions.dilation_px2;
+  if (!(dilation == -1 || (dilation >= 0 && dilation <= kCovDilation))) {
+    Fail("render: the dilation must be -1 (Inria's 0.3) or in [0, 0.3] px^2");
+  }
 }
 
 PixelRect ResolveRenderRect(const RenderCamera& camera,
@@ -123,6 +148,51 @@ PixelRect ResolveRenderRect(const RenderCamera& camera,
 
 namespace {
 
+// True when `conventions` drop the splat centred at `mean2d` (pixels).
+bool CulledByCentre(const ProjectionCamera& cam, const double* mean2d,
+                    const RenderConventions& conventions) {
+  const double limit = conventions.cull_centre_outside;
+  if (limit == 0) return false;
+  const double u = 2.0 * mean2d[0] / cam.width - 1.0;
+  const double v = 2.0 * mean2d[1] / cam.height - 1.0;
+  return !(std::abs(u) <= limit && std::abs(v) <= limit);
+}
+
+// Caps the splat's screen extent 2 sqrt(2 lambda) along each axis of its
+// ellipse at `cap` pixels: the eigenvalues of p->cov2d above cap^2 / 8 are
+// lowered to it (the eigenvectors kept), and the conic follows. The tiles
+// and radius stay those of the larger ellipse, a superset.
+void CapExtent(double cap, ProjectedGaussian* p) {
+  const double limit = cap * cap / 8;
+  double* cov = p->cov2d;
+  const double mid = 0.5 * (cov[0] + cov[2]);
+  const double half_diff = 0.5 * (cov[0] - cov[2]);
+  const double r = std::sqrt(half_diff * half_diff + cov[1] * cov[1]);
+  const double l1 = mid + r, l2 = mid - r;
+  if (!(l1 > limit)) return;
+  const double c1 = limit, c2 = std::min(l2, limit);
+  if (!(r > 0)) {
+    cov[0] = cov[2] = c1, cov[1] = 0;
+  } else {
+    // cov' = c2 I + (c1 - c2) e1 e1^T, e1 e1^T = (cov - l2 I) / (l1 - l2).
+    const double k = (c1 - c2) / (l1 - l2);
+    cov[0] = c2 + k * (cov[0] - l2);
+    cov[1] = k * cov[1];
+    cov[2] = c2 + k * (cov[2] - l2);
+  }
+  InvertCovariance2d(cov, p->conic);
+}
+
+// Replaces Inria's 0.3 px^2 dilation of p->cov2d by `dilation` (<= 0.3:
+// the tiles and radius stay a superset); false if the covariance is then
+// degenerate.
+bool Redilate(double dilation, ProjectedGaussian* p) {
+  p->cov2d[0] += dilation - kCovDilation;
+  p->cov2d[2] += dilation - kCovDilation;
+  return InvertCovariance2d(p->cov2d, p->conic) && std::isfinite(p->conic[0]) &&
+         std::isfinite(p->conic[1]) && std::isfinite(p->conic[2]);
+}
+
 // Per-Gaussian results of the projection stage, indexed by Gaussian id.
 struct ProjectedModel {
   // Blending parameters; filled only where binned (no value-initialisation:
@@ -147,6 +217,11 @@ ProjectedModel ProjectModel(const GaussianModel& model,
   out.binned.assign(n, 0), out.clamped.assign(n, 0);
   ctx->visible.assign(n, 0);
   const ProjectionCamera& cam = ctx->camera;
+  const RenderConventions& conventions = ctx->conventions;
+  const double extent_cap =
+      conventions.extent_cap_px > 0
+          ? std::min({conventions.extent_cap_px, cam.width, cam.height})
+          : 0;
 #pragma omp parallel for schedule(static)
   for (size_t i = 0; i < n; ++i) {
     const float* mean = &model.means[3 * i];
@@ -156,6 +231,12 @@ ProjectedModel ProjectModel(const GaussianModel& model,
     if (!ProjectForward(cam, mean, log_scale, &model.quats[4 * i], &p)) {
       continue;
     }
+    if (CulledByCentre(cam, p.mean2d, conventions)) continue;
+    if (conventions.dilation_px2 >= 0 &&
+        !Redilate(conventions.dilation_px2, &p)) {
+      continue;
+    }
+    if (extent_cap > 0) CapExtent(extent_cap, &p);
     if (Intersect(p.tiles, render_tiles).empty()) continue;
     ctx->visible[i] = 1;
     const float opacity = static_cast<float>(Sigmoid(model.opacity_logits[i]));
@@ -167,7 +248,8 @@ ProjectedModel ProjectModel(const GaussianModel& model,
     if (out.tiles[i].empty()) continue;
     out.binned[i] = 1;
     out.depth[i] = p.depth;
-    out.clamped[i] = ShadeSplat(model, i, ctx->active_sh_degree, cam, &splat);
+    out.clamped[i] = ShadeSplat(model, i, ctx->active_sh_degree,
+                                conventions.clamp_base_color, cam, &splat);
   }
   return out;
 }
@@ -209,10 +291,16 @@ void CpuRasterizer::Forward(const GaussianModel& model,
   auto ctx = std::make_unique<CpuRenderContext>();
   ctx->camera = MakeProjectionCamera(camera);
   ctx->frame_width = camera.width, ctx->frame_height = camera.height;
-  ctx->active_sh_degree =
-      options.active_sh_degree < 0
-          ? model.sh_degree
-          : std::min(options.active_sh_degree, model.sh_degree);
+  CheckRenderConventions(options.conventions);
+  ctx->conventions = options.conventions;
+  if (options.conventions.unclamped_jacobian) {
+    // No clamp: the limits it applies x/z and y/z at are infinite (the
+    // backward pass reads the same camera, so its gradient stays exact).
+    ctx->camera.tan_fovx = std::numeric_limits<double>::infinity();
+    ctx->camera.tan_fovy = std::numeric_limits<double>::infinity();
+  }
+  ctx->active_sh_degree = EffectiveShDegree(
+      options.active_sh_degree, model.sh_degree, options.conventions);
   ctx->background = options.background;
   ctx->num_gaussians = model.size();
   const TileRange render_tiles =
@@ -339,6 +427,12 @@ void CpuRasterizer::Backward(const GaussianModel& model,
     Fail(
         "render backward: gradient image or model does not match the "
         "forward pass");
+  }
+  if (ctx.conventions.clamp_base_color || ctx.conventions.extent_cap_px > 0 ||
+      ctx.conventions.dilation_px2 >= 0) {
+    Fail(
+        "render backward: the base-colour clamp, extent cap and dilation of "
+        "render conventions have no backward pass (forward only)");
   }
   std::vector<SplatGrad> splat_grads;
   RasterizeBackward(ctx.splats, ctx.bins, ctx.background, ctx.blend, grad_image,

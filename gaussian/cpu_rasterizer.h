@@ -23,6 +23,8 @@ class CpuRenderContext : public RenderContext {
   int frame_width = 0, frame_height = 0;
   // SH degree the colours used.
   int active_sh_degree = 0;
+  // The conventions the forward pass rendered with.
+  RenderConventions conventions;
   // Background the forward pass composited.
   std::array<float, 3> background = {0, 0, 0};
   // Number of Gaussians in the model rendered.
@@ -53,6 +55,10 @@ class CpuRasterizer : public Rasterizer {
                               const RenderOptions& options,
                               std::vector<double>* weights) override;
 };
+
+// Fails in one line on conventions out of range (a centre cull below 1
+// other than 0, a negative extent cap).
+void CheckRenderConventions(const RenderConventions& conventions);
 
 // Checks the options against the camera and model; returns the pixel rect
 // to render (the full frame when options.rect is empty). Throws Error.

@@ -10,6 +10,7 @@
 #include "gaussian/camera.h"
 #include "gaussian/gaussian_model.h"
 #include "gaussian/image.h"
+#include "gaussian/render_conventions.h"
 
 namespace watergs {
 
@@ -27,6 +28,10 @@ struct RenderOptions {
   // Region of the frame to render; empty means the whole frame. The output
   // image then has the rectangle's size and the cost scales with its area.
   PixelRect rect;
+  // Another renderer's per-splat conventions (render_conventions.h); the
+  // default renders as Inria does. CPU only: Backward refuses a base-colour
+  // clamp, an extent cap or a dilation, the CUDA rasterizer any of them.
+  RenderConventions conventions;
 };
 
 // Gradients of a scalar loss with respect to every model array, same shapes

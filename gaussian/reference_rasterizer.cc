@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "gaussian/sh.h"
@@ -26,7 +27,7 @@ struct RefSplat {
 };
 
 RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
-                    int degree) {
+                    int degree, const RenderConventions& conventions) {
   RefSplat s;
   const Eigen::Vector3d world(m.means[3 * i], m.means[3 * i + 1],
                               m.means[3 * i + 2]);
@@ -43,8 +44,13 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
   }
   const Eigen::Matrix3d sigma =
       rot * scale.asDiagonal() * scale.asDiagonal() * rot.transpose();
-  const double limx = 1.3 * 0.5 * cam.width / cam.fx;
-  const double limy = 1.3 * 0.5 * cam.height / cam.fy;
+  const double no_clamp = std::numeric_limits<double>::infinity();
+  const double limx = conventions.unclamped_jacobian
+                          ? no_clamp
+                          : 1.3 * 0.5 * cam.width / cam.fx;
+  const double limy = conventions.unclamped_jacobian
+                          ? no_clamp
+                          : 1.3 * 0.5 * cam.height / cam.fy;
   const double xz = std::clamp(t.x() / t.z(), -limx, limx);
   const double yz = std::clamp(t.y() / t.z(), -limy, limy);
   Eigen::Matrix<double, 2, 3> J;
@@ -57,6 +63,27 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
   s.conic = cov.inverse();
   s.mean = Eigen::Vector2d(cam.fx * t.x() / t.z() + cam.cx,
                            cam.fy * t.y() / t.z() + cam.cy);
+  const double cull = conventions.cull_centre_outside;
+  if (cull > 0 && !(std::abs(2 * s.mean.x() / cam.width - 1) <= cull &&
+                    std::abs(2 * s.mean.y() / cam.height - 1) <= cull)) {
+    return s;
+  }
+  // Another renderer's dilation and extent cap change the blended ellipse,
+  // not the tiles (those of Inria's ellipse, a superset).
+  Eigen::Matrix2d blended = cov;
+  if (conventions.dilation_px2 >= 0) {
+    blended -= (0.3 - conventions.dilation_px2) * Eigen::Matrix2d::Identity();
+    if (!(blended.determinant() > 0)) return s;
+  }
+  if (conventions.extent_cap_px > 0) {
+    const double cap = std::min({double(conventions.extent_cap_px),
+                                 double(cam.width), double(cam.height)});
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(blended);
+    const Eigen::Vector2d capped = eigen.eigenvalues().cwiseMin(cap * cap / 8);
+    blended = eigen.eigenvectors() * capped.asDiagonal() *
+              eigen.eigenvectors().transpose();
+  }
+  s.conic = blended.inverse();
   if (!m.screen_offsets.empty()) {
     s.mean +=
         Eigen::Vector2d(m.screen_offsets[2 * i], m.screen_offsets[2 * i + 1]);
@@ -82,6 +109,12 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
   double rgb[3];
   ShColorUnclamped(degree, &m.sh_dc[3 * i],
                    m.sh_rest.data() + i * m.sh_rest_stride(), dir, rgb);
+  if (conventions.clamp_base_color) {
+    for (int ch = 0; ch < 3; ++ch) {
+      const double base = kShC0 * m.sh_dc[3 * i + ch] + 0.5;
+      rgb[ch] += std::clamp(base, 0.0, 1.0) - base;
+    }
+  }
   s.color = Eigen::Vector3d(std::max(rgb[0], 0.0), std::max(rgb[1], 0.0),
                             std::max(rgb[2], 0.0));
   s.valid = true;
@@ -115,12 +148,11 @@ std::vector<double> ReferenceRender(const ReferenceModel& model,
                                     ReferenceDecisions* record) {
   PixelRect rect = options.rect;
   if (rect.empty()) rect = {0, 0, camera.width, camera.height};
-  const int degree = options.active_sh_degree < 0
-                         ? model.sh_degree
-                         : std::min(options.active_sh_degree, model.sh_degree);
+  const int degree = EffectiveShDegree(options.active_sh_degree,
+                                       model.sh_degree, options.conventions);
   std::vector<RefSplat> splats(model.size());
   for (size_t i = 0; i < model.size(); ++i) {
-    splats[i] = ProjectRef(model, i, camera, degree);
+    splats[i] = ProjectRef(model, i, camera, degree, options.conventions);
   }
   std::vector<uint32_t> order(model.size());
   std::iota(order.begin(), order.end(), 0u);

@@ -22,6 +22,7 @@
 #include "gaussian/cuda/device_buffer.h"
 #include "gaussian/cuda/raster_kernels.h"
 #include "gaussian/projection.h"
+#include "gaussian/render_conventions.h"
 #include "gaussian/tile_binning.h"
 #include "gaussian/util/error.h"
 
@@ -164,6 +165,7 @@ void CheckModel(const GaussianModel& model) {
 std::unique_ptr<CudaRenderContext> NewContext(const RenderCamera& camera,
                                               const RenderOptions& options,
                                               int sh_degree) {
+  RequireDefaultConventions(options.conventions, "the CUDA rasterizer");
   const PixelRect rect = ResolveRenderRect(camera, options);
   auto ctx = std::make_unique<CudaRenderContext>();
   ctx->camera = ToDeviceCamera(MakeProjectionCamera(camera));

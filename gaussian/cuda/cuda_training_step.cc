@@ -10,6 +10,7 @@
 
 #include "gaussian/cpu_rasterizer.h"
 #include "gaussian/cuda/cuda_check.h"
+#include "gaussian/render_conventions.h"
 #include "gaussian/util/error.h"
 
 namespace watergs {
@@ -37,6 +38,7 @@ void CudaTrainingStep::Forward(const RenderCamera& camera,
                                const RenderOptions& options,
                                const ImageRGB& truth) {
   PushIfStale();
+  RequireDefaultConventions(options.conventions, "the CUDA training step");
   const PixelRect rect = ResolveRenderRect(camera, options);
   const size_t values =
       3 * static_cast<size_t>(rect.width) * static_cast<size_t>(rect.height);

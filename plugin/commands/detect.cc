@@ -10,7 +10,9 @@
 // index of the workspace's photos and renders, built once and cached
 // (--index_cache, default WS/detect_index/<key>.idx); every call ends with
 // one line saying where its time went (indexing, registration, refinement,
-// decoding).
+// decoding). Its reference, the raw model's render at the registered camera,
+// follows the conventions of the renderer that matches the image best
+// (--reference_conventions auto: watergs', a web viewer's; issue 54).
 #include <omp.h>
 
 #include <algorithm>
@@ -29,6 +31,9 @@
 #include "gaussian/depth_render.h"
 #include "gaussian/device.h"
 #include "gaussian/formats/model_io.h"
+#include "gaussian/loss.h"
+#include "gaussian/rasterizer.h"
+#include "gaussian/render_conventions.h"
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
 #include "gaussian/util/progress.h"
@@ -38,6 +43,7 @@
 #include "plugin/model_alignment.h"
 #include "plugin/option_parser.h"
 #include "plugin/photometric_refinement.h"
+#include "plugin/reference_conventions.h"
 #include "plugin/suspect_reference.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
@@ -223,6 +229,14 @@ struct OwnerImages {
   std::vector<ViewDecode> views;  // differences, registered images only
   std::vector<Registration> registrations;     // per image
   std::vector<PhotometricResult> refinements;  // per image
+  // The candidate conventions of the reference, and per image the PSNR of
+  // each candidate's reference to the image and the one kept (registered
+  // images only; empty otherwise).
+  std::vector<NamedRenderConventions> candidates;
+  std::vector<ReferenceChoice> choices;
+  // Per image: the refinement again under the chosen conventions, when
+  // they are not the ones of the first refinement (else not applied).
+  std::vector<PhotometricResult> rerefinements;
   // Seconds: the index (with reading the raw model, opening the workspace
   // and placing the model in it), registering, refining the poses, and
   // rendering and decoding the raw model's references.
@@ -236,6 +250,8 @@ struct OwnerReadingOptions {
   int index_renders = 300;  // --index_renders
   // --index_cache: the folder of cached indexes; empty: no cache.
   std::string index_cache;
+  // --reference_conventions: "auto" or one name of the registry.
+  std::string reference_conventions = "auto";
 };
 
 OwnerImages ReadAsOwner(const std::vector<std::string>& files,
@@ -289,10 +305,29 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
       PlaceByOption("detect", "auto", *rasterizer, raw.model, raw_path,
                     workspace, views, {0.f, 0.f, 0.f})
           .placement.workspace_to_model;
-  const CameraRenderer render = [&](const RenderCamera& camera) {
-    return RenderClamped(*rasterizer, raw.model,
-                         TransformCamera(camera, to_model), {0.f, 0.f, 0.f});
+  // The raw model's render under each candidate's conventions (the CPU
+  // rasterizer for all but watergs' own: the CUDA one implements none).
+  out.candidates = ReferenceCandidates(reading.reference_conventions);
+  const std::unique_ptr<Rasterizer> cpu_rasterizer = MakeCpuRasterizer();
+  auto renderer_for = [&](const RenderConventions& conventions) {
+    Rasterizer* chosen =
+        conventions.IsDefault() ? rasterizer.get() : cpu_rasterizer.get();
+    return CameraRenderer([&, chosen, conventions](const RenderCamera& camera) {
+      RenderOptions options;
+      options.conventions = conventions;
+      ImageRGB image;
+      chosen->Forward(raw.model, TransformCamera(camera, to_model), options,
+                      &image, nullptr);
+      for (float& v : image.data) v = std::clamp(v, 0.f, 1.f);
+      return image;
+    });
   };
+  // The index is built from watergs' renders whatever the reference.
+  const CameraRenderer render = renderer_for(RenderConventions());
+  std::vector<CameraRenderer> candidate_renders;
+  for (const NamedRenderConventions& c : out.candidates) {
+    candidate_renders.push_back(renderer_for(c.conventions));
+  }
   if (build && reading.index_renders > 0) {
     ProgressBar bar("detect: indexing renders", reading.index_renders);
     int done = 0;
@@ -329,10 +364,14 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
   }
   out.indexing_s = SecondsSince(indexing_start);
   for (size_t k = 0; k < files.size(); ++k) {
-    // The raw model's render as this file went (its size, its JPEG).
-    const CameraRenderer like_file = [&](const RenderCamera& camera) {
-      return RenderLikeSuspect(render, camera, processing[k]);
-    };
+    // The raw model's render as this file went (its size, its JPEG), under
+    // each candidate's conventions; the pose is refined under the first.
+    std::vector<CameraRenderer> like_file;
+    for (const CameraRenderer& candidate : candidate_renders) {
+      like_file.push_back([&, candidate](const RenderCamera& camera) {
+        return RenderLikeSuspect(candidate, camera, processing[k]);
+      });
+    }
     auto start = std::chrono::steady_clock::now();
     Registration r = registrar->Register(images[k]);
     out.registration_s += SecondsSince(start);
@@ -342,24 +381,75 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
       // Every pose the matches support: the one the render fits best wins.
       std::vector<RenderCamera> starts = {r.camera, r.guessed_camera};
       starts.insert(starts.end(), r.alternatives.begin(), r.alternatives.end());
-      refined = RefinePhotometrically(images[k], starts, r.depth, like_file);
+      refined = RefinePhotometrically(images[k], starts, r.depth, like_file[0]);
       r.camera = refined.camera;
       out.refinement_s += SecondsSince(start);
     }
     out.refinements.push_back(refined);
+    ReferenceChoice choice;
+    PhotometricResult rerefined;
     if (r.registered) {
+      start = std::chrono::steady_clock::now();
+      std::vector<ImageRGB> references;
+      for (const CameraRenderer& candidate : like_file) {
+        references.push_back(candidate(r.camera));
+      }
+      choice = ChooseReference(images[k], references);
+      out.decoding_s += SecondsSince(start);
+      if (choice.best != 0 && reading.refine) {
+        // The first refinement fitted another renderer's image: the pose
+        // again, under the conventions that match the image.
+        start = std::chrono::steady_clock::now();
+        rerefined = RefinePhotometrically(images[k], {r.camera}, r.depth,
+                                          like_file[choice.best]);
+        if (rerefined.applied) {
+          r.camera = rerefined.camera;
+          references[choice.best] = like_file[choice.best](r.camera);
+          choice.psnr[choice.best] = Psnr(references[choice.best], images[k]);
+        }
+        out.refinement_s += SecondsSince(start);
+      }
       start = std::chrono::steady_clock::now();
       ViewDecode reference;
       reference.name = files[k];
-      reference.logits = decoder.Logits(like_file(r.camera));
+      reference.logits = decoder.Logits(references[choice.best]);
       std::vector<ViewDecode> one =
           DifferenceViews({decoded[k]}, {reference}, expected);
       out.views.push_back(std::move(one[0]));
       out.decoding_s += SecondsSince(start);
     }
+    out.choices.push_back(choice);
+    out.rerefinements.push_back(rerefined);
     out.registrations.push_back(std::move(r));
   }
   return out;
+}
+
+// Image k's reference: "<name> at <PSNR> dB" and, with several candidates,
+// the others' PSNR and the second refinement's motion.
+std::string ReferenceText(const OwnerImages& owner, size_t k) {
+  const ReferenceChoice& choice = owner.choices[k];
+  char text[96];
+  std::snprintf(text, sizeof(text), "%s at %.2f dB",
+                owner.candidates[choice.best].name.c_str(),
+                choice.psnr[choice.best]);
+  std::string out = text;
+  if (owner.candidates.size() < 2) return out;
+  std::string others;
+  for (size_t c = 0; c < owner.candidates.size(); ++c) {
+    if (c == choice.best) continue;
+    std::snprintf(text, sizeof(text), "%s%s %.2f", others.empty() ? "" : ", ",
+                  owner.candidates[c].name.c_str(), choice.psnr[c]);
+    others += text;
+  }
+  out += " (" + others;
+  const PhotometricResult& again = owner.rerefinements[k];
+  if (again.applied) {
+    std::snprintf(text, sizeof(text), "; refined again by %.2f px",
+                  again.moved_px);
+    out += text;
+  }
+  return out + ")";
 }
 
 int RunDetect(int argc, char** argv) {
@@ -425,6 +515,12 @@ int RunDetect(int argc, char** argv) {
              "render matches the image best (photometric least squares): "
              "the difference reading needs the render within a fraction of "
              "a pixel");
+  parser.Add("reference_conventions", &reading.reference_conventions,
+             "The renderer the raw model's reference imitates: auto (each "
+             "in turn, per image the one whose render matches the "
+             "registered image best, the pose refined again under it) or "
+             "one of them (" +
+                 RenderConventionsHelp() + ")");
   parser.Add("sparse_path", &workspace_options.input_path,
              "Sparse model folder (default <workspace>/sparse/0)");
   parser.Add("workspace_images", &workspace_options.image_path,
@@ -450,6 +546,7 @@ int RunDetect(int argc, char** argv) {
   if (decode_width < 0 || decode_width > kMaxSideAsIs) {
     Fail("--decode_width must be in [0, " + std::to_string(kMaxSideAsIs) + "]");
   }
+  ReferenceCandidates(reading.reference_conventions);  // fails on a typo
   if (num_threads > 0) omp_set_num_threads(num_threads);
   if (!json_path.empty()) CheckOutputFile(json_path);
   if (!parser.Given("index_cache") && !raw_path.empty()) {
@@ -581,10 +678,11 @@ int RunDetect(int argc, char** argv) {
         }
         std::printf(
             "detect (owner's reading): %s: registered (%d inliers of %d "
-            "matches, %.2f px%s): %d of %d bits wrong (BER %s), p-value "
-            "%.3g, %s\n",
-            files[k].c_str(), g.inliers, g.matches, g.rms_px, moved, errors,
-            num_bits, Percent(double(errors) / num_bits).c_str(), p,
+            "matches, %.2f px%s), reference %s: %d of %d bits wrong (BER %s), "
+            "p-value %.3g, %s\n",
+            files[k].c_str(), g.inliers, g.matches, g.rms_px, moved,
+            ReferenceText(owner, k).c_str(), errors, num_bits,
+            Percent(double(errors) / num_bits).c_str(), p,
             ToString(Decide(p, thresholds)).c_str());
       }
       owned =
@@ -670,6 +768,16 @@ int RunDetect(int argc, char** argv) {
               {"applied", f.applied},     {"moved_px", f.moved_px},
               {"start", f.start},         {"rms_before", f.rms_before},
               {"rms_after", f.rms_after}, {"renders", f.renders}};
+          const ReferenceChoice& choice = owner.choices[k];
+          nlohmann::json psnr = nlohmann::json::object();
+          for (size_t c = 0; c < owner.candidates.size(); ++c) {
+            psnr[owner.candidates[c].name] = choice.psnr[c];
+          }
+          const PhotometricResult& again = owner.rerefinements[k];
+          e["reference"] = {{"conventions", owner.candidates[choice.best].name},
+                            {"psnr", psnr},
+                            {"refined_again", again.applied},
+                            {"refined_again_px", again.moved_px}};
           const RenderCamera& c = g.camera;
           e["camera"] = {
               {"fx", c.fx},

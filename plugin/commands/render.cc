@@ -10,6 +10,7 @@
 #include "gaussian/device.h"
 #include "gaussian/formats/model_io.h"
 #include "gaussian/rasterizer.h"
+#include "gaussian/render_conventions.h"
 #include "gaussian/trainer.h"
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
@@ -109,7 +110,14 @@ int RunRender(int argc, char** argv) {
              "PNG)");
   std::string align = "auto";
   parser.Add("align", &align, kAlignHelp);
+  std::string conventions_name = "watergs";
+  parser.Add(
+      "render_conventions", &conventions_name,
+      "Render as another renderer does (CPU only): " + RenderConventionsHelp());
   if (!parser.Parse(argc, argv)) return 0;
+  const RenderConventions conventions =
+      FindRenderConventions(conventions_name, "--render_conventions")
+          .conventions;
   if (num_views < 0) Fail("--num_views must be >= 0");
   if (jpeg_quality < 0 || jpeg_quality > 100) {
     Fail("--jpeg_quality must be in 0..100 (0 = PNG)");
@@ -142,6 +150,7 @@ int RunRender(int argc, char** argv) {
     RenderOptions options;
     options.background = bg;
     options.active_sh_degree = sh_degree;
+    options.conventions = conventions;
     RenderFreeViews(ply.model, views, num_views, uint64_t(seed),
                     image_attack.empty() ? std::vector<ImageAttackSpec>{}
                                          : ParseImageAttackList(image_attack),
@@ -161,6 +170,7 @@ int RunRender(int argc, char** argv) {
   RenderOptions options;
   options.background = bg;
   options.active_sh_degree = sh_degree;
+  options.conventions = conventions;
   ProgressBar bar("render", static_cast<int64_t>(selected.size()));
   nlohmann::json per_view = nlohmann::json::array();
   double psnr_sum = 0, ssim_sum = 0;

@@ -122,6 +122,26 @@ TEST(RasterizerGradient, MatchesFiniteDifferencesOnRandomScenes) {
   }
 }
 
+TEST(RasterizerGradient, MatchesFiniteDifferencesUnderWebConventions) {
+  // The render conventions with a backward pass: splats centred outside
+  // 1.2x the frame dropped, SH capped at degree 1, the Jacobian unclamped;
+  // means up to 14 px outside a 40 px frame, so some are dropped and some
+  // sit beyond the 1.3 tan(half-FOV) clamp.
+  for (unsigned seed = 0; seed < 2; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    const RenderCamera cam = RandomCamera(40, 34, 60 + seed);
+    SceneSpec spec;
+    spec.count = 16;
+    spec.margin = 14;
+    const GaussianModel model = RandomScene(cam, spec, 70 + seed);
+    RenderOptions options;
+    options.conventions.cull_centre_outside = 1.2;
+    options.conventions.max_sh_degree = 1;
+    options.conventions.unclamped_jacobian = true;
+    CheckScene(model, cam, options, 80 + seed);
+  }
+}
+
 TEST(RasterizerGradient, OpaqueSceneWithEarlyStopAndAlphaCap) {
   // Opacities up to sigmoid(6): the 0.99 cap binds at centres and pixels
   // stop at T < 1e-4, both of which the backward must handle.

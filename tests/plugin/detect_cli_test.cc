@@ -16,6 +16,8 @@
 #include <vector>
 
 #include "gaussian/formats/ply_io.h"
+#include "gaussian/rasterizer.h"
+#include "gaussian/render_conventions.h"
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
 #include "plugin/image_file.h"
@@ -322,6 +324,102 @@ TEST(DetectCli, TheOwnersIndexIsCachedBesideTheWorkspaceAndReadBack) {
   EXPECT_EQ(uncached.output.find("detect: index "), std::string::npos)
       << uncached.output;
   EXPECT_EQ(FilesIn(cache).size(), 2u);
+}
+
+// The owner's reference follows the renderer the image came from
+// (--reference_conventions auto, issue 54): a watergs render saved as PNG
+// keeps watergs' reference and reads exactly as with
+// --reference_conventions watergs; the same view rendered as
+// gaussian-splats-3d renders it (web: SH degree 0 here, where the model's
+// colour depends on the view) gets the web reference, which matches it
+// better than watergs' does.
+TEST(DetectCli, TheReferenceFollowsTheRendererTheImageCameFrom) {
+  TempDir dir("detect_cli_conventions");
+  testing::SyntheticModelOptions options;
+  options.num_images = 6;
+  options.num_points = 1000;
+  options.width = 160;
+  options.height = 120;
+  GaussianModel raw;
+  const std::string ws =
+      testing::MakeRenderedWorkspace(dir / "ws", options, &raw);
+  for (float& s : raw.log_scales) s -= 1.0f;
+  // View-dependent colour (SH degree 1), which the web viewer leaves out.
+  ASSERT_EQ(raw.sh_degree, 1);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> shade(-0.3f, 0.3f);
+  for (float& c : raw.sh_rest) c = shade(rng);
+  WritePly(dir / "raw.ply", raw);
+  WorkspaceOptions wo;
+  wo.workspace_path = ws;
+  const Workspace workspace = Workspace::Open(wo);
+  const std::vector<ImageRGB> renders = testing::RenderViews(raw, workspace);
+  for (size_t v = 0; v < renders.size(); ++v) {
+    WritePng(ws + "/images/" + workspace.ViewName(v), renders[v]);
+  }
+  RenderOptions web_options;
+  web_options.conventions = FindRenderConventions("web", "test").conventions;
+  ImageRGB web;
+  MakeCpuRasterizer()->Forward(raw, workspace.ViewCamera(3), web_options, &web,
+                               nullptr);
+  for (float& v : web.data) v = std::clamp(v, 0.f, 1.f);
+  CreateDirectories(dir / "shots");
+  const std::string own = dir / "shots/a_watergs.png";
+  const std::string viewer = dir / "shots/b_web.png";
+  WritePng(own, renders[1]);
+  WritePng(viewer, web);
+  const std::string decoder = testing::WriteTinyDecoder(dir / "tiny.bin");
+  const std::string base =
+      WatergsBin() + " detect --decoder " + decoder + " --image_path " +
+      (dir / "shots") + " --message hex:a5c3 --raw_path " + (dir / "raw.ply") +
+      " --workspace_path " + ws + " --index_renders 4 --num_threads 2";
+
+  const auto chosen = RunCommand(base + " --json " + (dir / "auto.json"));
+  ASSERT_EQ(chosen.exit_code, 0) << chosen.output;
+  const std::vector<std::string> lines =
+      LinesStartingWith(chosen.output, "detect (owner's reading): " + own);
+  ASSERT_EQ(lines.size(), 1u) << chosen.output;
+  EXPECT_NE(lines[0].find("reference watergs at "), std::string::npos)
+      << lines[0];
+  EXPECT_NE(lines[0].find("(web "), std::string::npos) << lines[0];
+  const std::vector<std::string> web_lines =
+      LinesStartingWith(chosen.output, "detect (owner's reading): " + viewer);
+  ASSERT_EQ(web_lines.size(), 1u) << chosen.output;
+  EXPECT_NE(web_lines[0].find("reference web at "), std::string::npos)
+      << web_lines[0];
+  const nlohmann::json a = ReadJson(dir / "auto.json");
+  const auto& registrations = a["owner"]["registrations"];
+  ASSERT_EQ(registrations.size(), 2u);
+  ASSERT_TRUE(registrations[0]["registered"].get<bool>()) << a.dump();
+  ASSERT_TRUE(registrations[1]["registered"].get<bool>()) << a.dump();
+  const auto& mine = registrations[0]["reference"];
+  const auto& theirs = registrations[1]["reference"];
+  EXPECT_EQ(mine["conventions"], "watergs");
+  EXPECT_EQ(theirs["conventions"], "web");
+  EXPECT_GT(mine["psnr"]["watergs"].get<double>(),
+            mine["psnr"]["web"].get<double>() + 3);
+  EXPECT_GT(theirs["psnr"]["web"].get<double>(),
+            theirs["psnr"]["watergs"].get<double>() + 3);
+
+  // Only watergs' conventions: the watergs render reads the same logits
+  // and camera as under auto; the web screenshot gets watergs' reference.
+  const auto fixed = RunCommand(base + " --reference_conventions watergs" +
+                                " --json " + (dir / "watergs.json"));
+  ASSERT_EQ(fixed.exit_code, 0) << fixed.output;
+  const nlohmann::json b = ReadJson(dir / "watergs.json");
+  EXPECT_EQ(b["owner"]["registrations"][0]["camera"],
+            registrations[0]["camera"]);
+  EXPECT_EQ(b["owner"]["views"][0]["logits"], a["owner"]["views"][0]["logits"]);
+  EXPECT_EQ(b["owner"]["registrations"][1]["reference"]["conventions"],
+            "watergs");
+  EXPECT_EQ(
+      LinesStartingWith(fixed.output, "detect (owner's reading): " + viewer)[0]
+          .find("reference web"),
+      std::string::npos);
+
+  ExpectOneLineError(RunCommand(base + " --reference_conventions webgl"),
+                     "--reference_conventions: unknown render conventions "
+                     "'webgl' (one of watergs, web, playcanvas)");
 }
 
 TEST(DetectCli, RefusesUnusableInputInOneLineNamingTheFile) {

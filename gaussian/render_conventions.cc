@@ -1,0 +1,88 @@
+// The registry of named render conventions and their checks.
+#include "gaussian/render_conventions.h"
+
+#include <algorithm>
+
+#include "gaussian/util/error.h"
+
+namespace watergs {
+
+bool RenderConventions::IsDefault() const {
+  return cull_centre_outside == 0 && max_sh_degree < 0 && !clamp_base_color &&
+         extent_cap_px == 0 && dilation_px2 == -1 && !unclamped_jacobian;
+}
+
+const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
+  static const std::vector<NamedRenderConventions> registry = [] {
+    RenderConventions web;
+    web.cull_centre_outside = 1.2;
+    web.max_sh_degree = 0;
+    web.clamp_base_color = true;
+    RenderConventions playcanvas;
+    playcanvas.extent_cap_px = 1024;
+    playcanvas.dilation_px2 = 0.075;
+    playcanvas.unclamped_jacobian = true;
+    return std::vector<NamedRenderConventions>{
+        {"watergs", RenderConventions(),
+         "watergs' and Inria's: every splat whose footprint touches the "
+         "frame, the model's SH, colour clamped at 0"},
+        {"web", web,
+         "gaussian-splats-3d's defaults: splats centred outside 1.2x the "
+         "frame dropped, SH degree 0, base colour clamped to [0, 1]"},
+        {"playcanvas", playcanvas,
+         "PlayCanvas': screen extent capped at min(1024, the frame's "
+         "shorter side) pixels, dilation 0.075 px^2, no Jacobian clamp"},
+    };
+  }();
+  return registry;
+}
+
+std::string RenderConventionNames(const std::string& separator) {
+  std::string names;
+  for (const NamedRenderConventions& entry : RenderConventionsRegistry()) {
+    if (!names.empty()) names += separator;
+    names += entry.name;
+  }
+  return names;
+}
+
+std::string RenderConventionsHelp() {
+  std::string help;
+  for (const NamedRenderConventions& entry : RenderConventionsRegistry()) {
+    if (!help.empty()) help += "; ";
+    help += entry.name + ": " + entry.description;
+  }
+  return help;
+}
+
+const NamedRenderConventions& FindRenderConventions(const std::string& name,
+                                                    const std::string& option) {
+  for (const NamedRenderConventions& entry : RenderConventionsRegistry()) {
+    if (entry.name == name) return entry;
+  }
+  Fail(option + ": unknown render conventions '" + Printable(name) +
+       "' (one of " + RenderConventionNames(", ") + ")");
+}
+
+void RequireDefaultConventions(const RenderConventions& conventions,
+                               const std::string& who) {
+  if (!conventions.IsDefault()) {
+    Fail("render: " + who +
+         " renders with watergs' conventions only (another renderer's were "
+         "asked: a centre cull, SH cap, colour clamp, extent cap, dilation "
+         "or unclamped Jacobian): use the CPU");
+  }
+}
+
+int EffectiveShDegree(int active_sh_degree, int model_sh_degree,
+                      const RenderConventions& conventions) {
+  int degree = active_sh_degree < 0
+                   ? model_sh_degree
+                   : std::min(active_sh_degree, model_sh_degree);
+  if (conventions.max_sh_degree >= 0) {
+    degree = std::min(degree, conventions.max_sh_degree);
+  }
+  return degree;
+}
+
+}  // namespace watergs

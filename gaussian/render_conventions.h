@@ -1,0 +1,83 @@
+// Render conventions: the per-splat choices in which 3DGS renderers differ
+// from Inria's (and watergs') while reading the same file, applied by the
+// rasterizer when asked (RenderOptions::conventions). Web viewers cull
+// splats by their centre, evaluate fewer SH bands, store the base colour in
+// 8 bits and cap the screen extent of large splats; watergs renders as
+// Inria does. The owner's reading of a screenshot (`detect`) renders its
+// reference the way the viewer did (results/viewers/README.md measures the
+// gap: 25.9 dB between gaussian-splats-3d and watergs on the demo, 39.4 dB
+// once the first three are applied). Each named set lives in one registry
+// here, the only list of their names.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace watergs {
+
+struct RenderConventions {
+  // Splats whose projected centre lies outside this multiple of the frame
+  // (|2 x / width - 1| or |2 y / height - 1| above it, x, y the centre in
+  // pixels) are dropped, however far their footprint reaches into the frame
+  // (gaussian-splats-3d: 1.2). 0: none dropped by their centre (Inria keeps
+  // every splat in front of the near plane whose 3-sigma square touches the
+  // image).
+  double cull_centre_outside = 0;
+  // At most this SH degree is evaluated (gaussian-splats-3d's default: 0);
+  // -1: the model's (or RenderOptions::active_sh_degree).
+  int max_sh_degree = -1;
+  // The base colour (0.5 + C0 * DC) is clamped to [0, 1] before the higher
+  // bands are added (gaussian-splats-3d stores it in 8 bits); Inria clamps
+  // the final colour at 0 only, which watergs always does.
+  bool clamp_base_color = false;
+  // The splat's screen extent 2 sqrt(2 lambda) along each axis of its
+  // ellipse (lambda an eigenvalue of the dilated 2D covariance; 2.83 sigma,
+  // where PlayCanvas' quad ends) is capped at min(this, the frame's shorter
+  // side) pixels, which shrinks the Gaussian along that axis (PlayCanvas:
+  // 1024). 0: no cap.
+  int extent_cap_px = 0;
+  // The low-pass dilation added to the 2D covariance's diagonal, in px^2,
+  // in [0, 0.3]; -1: Inria's 0.3. (PlayCanvas adds 0.3 to a covariance in
+  // half-pixel units: 0.075 px^2.)
+  double dilation_px2 = -1;
+  // The perspective Jacobian is taken at the centre's own x/z and y/z,
+  // without Inria's clamp to 1.3 tan(half-FOV) (PlayCanvas).
+  bool unclamped_jacobian = false;
+
+  // True when the rasterizer renders exactly as without conventions.
+  bool IsDefault() const;
+};
+
+// One named set of conventions: a renderer whose output the set imitates.
+struct NamedRenderConventions {
+  std::string name;
+  RenderConventions conventions;
+  std::string description;  // one line: whose conventions, which fields
+};
+
+// Every named set, watergs' own first. The names of `--render_conventions`
+// and `--reference_conventions`.
+const std::vector<NamedRenderConventions>& RenderConventionsRegistry();
+
+// The registry's names joined by `separator` ("watergs|web|playcanvas").
+std::string RenderConventionNames(const std::string& separator = "|");
+
+// "name: description; ..." over the registry, for option help.
+std::string RenderConventionsHelp();
+
+// The set named `name`; an unknown name fails in one line listing the names
+// (`option` names the option in the message).
+const NamedRenderConventions& FindRenderConventions(const std::string& name,
+                                                    const std::string& option);
+
+// Fails in one line when `conventions` are not the default: for renderers
+// that implement none of them (`who` names it, e.g. "the CUDA rasterizer").
+void RequireDefaultConventions(const RenderConventions& conventions,
+                               const std::string& who);
+
+// The SH degree rendered: `active_sh_degree` (-1: the model's) capped by
+// the model's degree and the conventions' max_sh_degree.
+int EffectiveShDegree(int active_sh_degree, int model_sh_degree,
+                      const RenderConventions& conventions);
+
+}  // namespace watergs

@@ -1,0 +1,368 @@
+// Render conventions (gaussian/render_conventions.h) in the CPU forward
+// pass: each one changes only what it names, at a value that changes
+// nothing it renders bit-identically to the default, the registry's names
+// resolve, and what has no backward or no CUDA twin refuses in one line.
+#include "gaussian/render_conventions.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "gaussian/cpu_rasterizer.h"
+#include "gaussian/reference_rasterizer.h"
+#include "gaussian/sh.h"
+#include "gaussian/util/error.h"
+#include "tests/gaussian/rasterizer_test_scenes.h"
+
+namespace watergs {
+namespace {
+
+using testing::RandomCamera;
+using testing::RandomScene;
+using testing::SceneSpec;
+
+ImageRGB Render(const GaussianModel& model, const RenderCamera& camera,
+                const RenderConventions& conventions,
+                std::unique_ptr<RenderContext>* context = nullptr) {
+  RenderOptions options;
+  options.conventions = conventions;
+  ImageRGB image;
+  MakeCpuRasterizer()->Forward(model, camera, options, &image, context);
+  return image;
+}
+
+// A 64x48 camera at the origin looking down +z, its principal point on the
+// centre of pixel (32, 24).
+RenderCamera AxisCamera() {
+  RenderCamera camera;
+  camera.width = 64, camera.height = 48;
+  camera.fx = camera.fy = 50;
+  camera.cx = 32.5, camera.cy = 24.5;
+  camera.R = Eigen::Matrix3d::Identity();
+  camera.t = Eigen::Vector3d::Zero();
+  return camera;
+}
+
+// One isotropic Gaussian of SH degree 0 centred on pixel (px, py) (its
+// centre px + 0.5, py + 0.5), depth 4, of
+// standard deviation `sigma_px` pixels there, opacity 0.5, base colour
+// `base` in every channel.
+GaussianModel OneSplat(double px, double py, double sigma_px,
+                       double base = 0.5) {
+  const RenderCamera camera = AxisCamera();
+  const double z = 4;
+  GaussianModel model;
+  model.sh_degree = 0;
+  model.Resize(1);
+  model.means = {float((px + 0.5 - camera.cx) / camera.fx * z),
+                 float((py + 0.5 - camera.cy) / camera.fy * z), float(z)};
+  const float log_scale = float(std::log(sigma_px * z / camera.fx));
+  model.log_scales = {log_scale, log_scale, log_scale};
+  model.quats = {1, 0, 0, 0};
+  model.opacity_logits = {0};
+  for (int ch = 0; ch < 3; ++ch) model.sh_dc[ch] = float((base - 0.5) / kShC0);
+  return model;
+}
+
+double Lit(const ImageRGB& image) {
+  double sum = 0;
+  for (float v : image.data) sum += v;
+  return sum;
+}
+
+float Red(const ImageRGB& image, int x, int y) {
+  return image.data[3 * (size_t(y) * image.width + x)];
+}
+
+RenderConventions Web() {
+  return FindRenderConventions("web", "test").conventions;
+}
+
+TEST(RenderConventions, RegistryNamesWatergsFirstAndTheMeasuredWebSet) {
+  const auto& registry = RenderConventionsRegistry();
+  ASSERT_GE(registry.size(), 2u);
+  EXPECT_EQ(registry[0].name, "watergs");
+  EXPECT_TRUE(registry[0].conventions.IsDefault());
+  for (size_t a = 0; a < registry.size(); ++a) {
+    EXPECT_FALSE(registry[a].description.empty());
+    for (size_t b = a + 1; b < registry.size(); ++b) {
+      EXPECT_NE(registry[a].name, registry[b].name);
+    }
+  }
+  const RenderConventions web = Web();
+  EXPECT_EQ(web.cull_centre_outside, 1.2);
+  EXPECT_EQ(web.max_sh_degree, 0);
+  EXPECT_TRUE(web.clamp_base_color);
+  EXPECT_EQ(web.extent_cap_px, 0);
+  EXPECT_EQ(RenderConventionNames(), "watergs|web|playcanvas");
+  try {
+    FindRenderConventions("webb", "--reference_conventions");
+    FAIL() << "an unknown name was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "--reference_conventions: unknown render conventions 'webb' "
+              "(one of watergs, web, playcanvas)");
+  }
+}
+
+TEST(RenderConventions, ValuesThatChangeNothingRenderBitIdentically) {
+  for (unsigned seed = 0; seed < 4; ++seed) {
+    const RenderCamera camera = RandomCamera(70, 52, seed);
+    SceneSpec spec;
+    spec.sh_degree = 3;
+    const GaussianModel model = RandomScene(camera, spec, 40 + seed);
+    const ImageRGB plain = Render(model, camera, RenderConventions());
+    ASSERT_GT(Lit(plain), 1.0);
+    RenderConventions wide;
+    wide.cull_centre_outside = 1e6;  // every centre is inside
+    EXPECT_EQ(Render(model, camera, wide).data, plain.data) << seed;
+    RenderConventions all_bands;
+    all_bands.max_sh_degree = 3;
+    EXPECT_EQ(Render(model, camera, all_bands).data, plain.data) << seed;
+  }
+  // No base colour outside [0, 1], no splat wider than the frame: the clamp
+  // and the cap change nothing.
+  const GaussianModel small = OneSplat(30, 20, 3.0, 0.8);
+  const ImageRGB plain = Render(small, AxisCamera(), RenderConventions());
+  RenderConventions clamp_and_cap;
+  clamp_and_cap.clamp_base_color = true;
+  clamp_and_cap.extent_cap_px = 1024;
+  EXPECT_EQ(Render(small, AxisCamera(), clamp_and_cap).data, plain.data);
+}
+
+TEST(RenderConventions, WebDropsASplatCentredOutsideTheFrameItReaches) {
+  // Centre at NDC x = 1.32 (outside gaussian-splats-3d's 1.2 limit), 12 px
+  // wide: its footprint covers the right third of the frame.
+  const GaussianModel outside = OneSplat(1.15 * 64, 24, 12);
+  ASSERT_GT(Lit(Render(outside, AxisCamera(), RenderConventions())), 10.0);
+  EXPECT_EQ(Lit(Render(outside, AxisCamera(), Web())), 0.0);
+  // At NDC x = 1.12 it stays.
+  const GaussianModel inside = OneSplat(1.05 * 64, 24, 12);
+  EXPECT_GT(Lit(Render(inside, AxisCamera(), Web())), 10.0);
+  // Vertically too, and the limit is a parameter.
+  const GaussianModel below = OneSplat(32, 1.2 * 48, 12);
+  RenderConventions wide;
+  wide.cull_centre_outside = 1.5;
+  EXPECT_GT(Lit(Render(below, AxisCamera(), wide)), 10.0);
+  wide.cull_centre_outside = 1.3;
+  EXPECT_EQ(Lit(Render(below, AxisCamera(), wide)), 0.0);
+}
+
+TEST(RenderConventions, ShCapIgnoresTheHigherBands) {
+  const RenderCamera camera = RandomCamera(48, 40, 5);
+  SceneSpec spec;
+  spec.sh_degree = 3;
+  GaussianModel model = RandomScene(camera, spec, 9);
+  RenderConventions cap;
+  cap.max_sh_degree = 0;
+  const ImageRGB capped = Render(model, camera, cap);
+  RenderOptions degree0;
+  degree0.active_sh_degree = 0;
+  ImageRGB expected;
+  MakeCpuRasterizer()->Forward(model, camera, degree0, &expected, nullptr);
+  EXPECT_EQ(capped.data, expected.data);
+  EXPECT_NE(capped.data, Render(model, camera, RenderConventions()).data);
+  // The tighter of the two caps wins.
+  cap.max_sh_degree = 2;
+  RenderOptions degree1;
+  degree1.active_sh_degree = 1;
+  degree1.conventions = cap;
+  ImageRGB both;
+  MakeCpuRasterizer()->Forward(model, camera, degree1, &both, nullptr);
+  degree1.conventions = RenderConventions();
+  MakeCpuRasterizer()->Forward(model, camera, degree1, &expected, nullptr);
+  EXPECT_EQ(both.data, expected.data);
+}
+
+TEST(RenderConventions, BaseColourIsClampedToOneBeforeTheHigherBands) {
+  // Base colour 1.4 (10% of the demo's splats are brighter than 1): the
+  // centre pixel is 0.5 x 1.4 without the clamp, 0.5 x 1 with it.
+  const GaussianModel bright = OneSplat(32, 24, 4, 1.4);
+  RenderConventions clamp;
+  clamp.clamp_base_color = true;
+  EXPECT_NEAR(Red(Render(bright, AxisCamera(), RenderConventions()), 32, 24),
+              0.7, 1e-4);
+  EXPECT_NEAR(Red(Render(bright, AxisCamera(), clamp), 32, 24), 0.5, 1e-4);
+  // Below 0 it clamps at 0 either way (Inria's colour clamp).
+  const GaussianModel dark = OneSplat(32, 24, 4, -0.3);
+  EXPECT_EQ(Red(Render(dark, AxisCamera(), clamp), 32, 24), 0.f);
+  // The higher bands are added after the clamp: degree 1 with a constant
+  // +0.2 along the view direction (+z) on top of the clamped 1.
+  GaussianModel banded = bright;
+  banded.sh_degree = 1;
+  banded.sh_rest.assign(size_t(banded.sh_rest_stride()), 0.f);
+  // Basis 2 is C1 z; the splat sits on the axis (z = 1).
+  for (int ch = 0; ch < 3; ++ch) banded.sh_rest[3 + ch] = float(0.2 / kShC1);
+  EXPECT_NEAR(Red(Render(banded, AxisCamera(), clamp), 32, 24), 0.6, 1e-4);
+  EXPECT_NEAR(Red(Render(banded, AxisCamera(), RenderConventions()), 32, 24),
+              0.8, 1e-4);
+}
+
+TEST(RenderConventions, ExtentCapShrinksWideSplatsAlongTheirWideAxisOnly) {
+  // A splat 200 px wide along an axis 30 degrees from x, 3 px across, in a
+  // 64x48 frame: PlayCanvas' cap min(1024, 48) limits 2 sqrt(2 lambda) to
+  // 48 px, lambda to 288 px^2 along the wide axis; the narrow axis keeps
+  // 3^2 + 0.3 (the dilation).
+  GaussianModel model = OneSplat(32, 24, 3.0);
+  const double theta = M_PI / 6;
+  model.quats = {float(std::cos(theta / 2)), 0, 0, float(std::sin(theta / 2))};
+  model.log_scales[0] = float(std::log(200.0 * 4 / 50));
+  RenderConventions cap;
+  cap.extent_cap_px = 1024;
+  const ImageRGB capped = Render(model, AxisCamera(), cap);
+  const ImageRGB plain = Render(model, AxisCamera(), RenderConventions());
+  const double wide = 288, narrow = 9.3, wide_plain = 200.0 * 200 + 0.3;
+  auto expected = [&](int x, int y, double along) {
+    const double dx = x - 32, dy = y - 24;
+    const double u = dx * std::cos(theta) + dy * std::sin(theta);
+    const double v = -dx * std::sin(theta) + dy * std::cos(theta);
+    const double alpha =
+        0.5 * std::exp(-0.5 * (u * u / along + v * v / narrow));
+    return 0.5 * alpha;  // base colour 0.5
+  };
+  for (const auto& [x, y] :
+       {std::pair{32, 24}, {52, 36}, {12, 12}, {40, 29}, {33, 26}}) {
+    EXPECT_NEAR(Red(capped, x, y), expected(x, y, wide), 2e-4) << x << "," << y;
+    EXPECT_NEAR(Red(plain, x, y), expected(x, y, wide_plain), 2e-4)
+        << x << "," << y;
+  }
+  EXPECT_LT(Red(capped, 52, 36), Red(plain, 52, 36) - 0.01);
+}
+
+TEST(RenderConventions, FastForwardMatchesTheReferenceUnderEachNamedSet) {
+  // Random scenes with means up to 30 px outside the frame, some splats
+  // brighter than 1 and some wider than PlayCanvas' cap (17 px sigma in a
+  // 64 px high frame).
+  for (unsigned seed = 0; seed < 4; ++seed) {
+    const RenderCamera camera = RandomCamera(80, 64, 90 + seed);
+    SceneSpec spec;
+    spec.count = 80;
+    spec.margin = 30;
+    spec.sh_degree = seed % 4;
+    GaussianModel model = RandomScene(camera, spec, 100 + seed);
+    for (size_t i = 0; i < model.size(); i += 5) {
+      model.sh_dc[3 * i] = float((1.4 - 0.5) / kShC0);
+      for (int d = 0; d < 3; ++d) model.log_scales[3 * i + d] += 1.8f;
+    }
+    for (const NamedRenderConventions& named : RenderConventionsRegistry()) {
+      RenderOptions options;
+      options.conventions = named.conventions;
+      ImageRGB image;
+      MakeCpuRasterizer()->Forward(model, camera, options, &image, nullptr);
+      const std::vector<double> reference =
+          ReferenceRender(ReferenceModel::From(model), camera, options);
+      ASSERT_EQ(image.data.size(), reference.size());
+      double worst = 0;
+      for (size_t k = 0; k < reference.size(); ++k) {
+        worst = std::max(worst, std::abs(double(image.data[k]) - reference[k]));
+      }
+      EXPECT_LT(worst, 1e-5) << named.name << ", seed " << seed;
+    }
+    // The sets differ from each other on these scenes.
+    const ImageRGB plain = Render(model, camera, RenderConventions());
+    EXPECT_NE(Render(model, camera, Web()).data, plain.data) << seed;
+    EXPECT_NE(Render(model, camera,
+                     FindRenderConventions("playcanvas", "test").conventions)
+                  .data,
+              plain.data)
+        << seed;
+  }
+}
+
+TEST(RenderConventions, DilationAndUnclampedJacobianAsPlayCanvasHasThem) {
+  // A splat of 0.5 px sigma: one pixel off its centre, its alpha is
+  // 0.5 exp(-0.5 / (0.25 + dilation)).
+  const GaussianModel tiny = OneSplat(32, 24, 0.5);
+  RenderConventions thin;
+  thin.dilation_px2 = 0.075;
+  EXPECT_NEAR(Red(Render(tiny, AxisCamera(), RenderConventions()), 33, 24),
+              0.25 * std::exp(-0.5 / 0.55), 1e-5);
+  EXPECT_NEAR(Red(Render(tiny, AxisCamera(), thin), 33, 24),
+              0.25 * std::exp(-0.5 / 0.325), 1e-5);
+  // Centred at x/z = 1.3 (Inria clamps at 1.3 x 0.64): the unclamped
+  // Jacobian widens its footprint in the frame; one centred in the frame
+  // renders the same either way.
+  RenderConventions unclamped;
+  unclamped.unclamped_jacobian = true;
+  const GaussianModel far = OneSplat(97, 24, 12);
+  EXPECT_GT(Lit(Render(far, AxisCamera(), unclamped)),
+            Lit(Render(far, AxisCamera(), RenderConventions())) + 1.0);
+  const GaussianModel near = OneSplat(40, 30, 6);
+  EXPECT_EQ(Render(near, AxisCamera(), unclamped).data,
+            Render(near, AxisCamera(), RenderConventions()).data);
+}
+
+TEST(RenderConventions, BackwardRunsWithTheCullAndRefusesTheClampAndCap) {
+  const RenderCamera camera = AxisCamera();
+  GaussianModel model = OneSplat(1.15 * 64, 24, 12);
+  const GaussianModel inside = OneSplat(40, 20, 5);
+  model.Resize(2);
+  for (int d = 0; d < 3; ++d) {
+    model.means[3 + d] = inside.means[d];
+    model.log_scales[3 + d] = inside.log_scales[d];
+    model.sh_dc[3 + d] = inside.sh_dc[d];
+  }
+  for (int d = 0; d < 4; ++d) model.quats[4 + d] = inside.quats[d];
+  model.opacity_logits[1] = 0;
+  RenderConventions cull;
+  cull.cull_centre_outside = 1.2;
+  std::unique_ptr<RenderContext> context;
+  const ImageRGB image = Render(model, camera, cull, &context);
+  ImageRGB ones = image;
+  std::fill(ones.data.begin(), ones.data.end(), 1.f);
+  GaussianGradients grads;
+  MakeCpuRasterizer()->Backward(model, *context, ones, &grads);
+  EXPECT_EQ(grads.visible, (std::vector<uint8_t>{0, 1}));
+  for (int d = 0; d < 3; ++d) {
+    EXPECT_EQ(grads.means[d], 0.f);
+    EXPECT_EQ(grads.sh_dc[d], 0.f);
+  }
+  EXPECT_NE(grads.sh_dc[3], 0.f);
+
+  RenderConventions thin;
+  thin.dilation_px2 = 0.1;
+  for (const RenderConventions& conventions :
+       {Web(), FindRenderConventions("playcanvas", "test").conventions, thin}) {
+    Render(model, camera, conventions, &context);
+    try {
+      MakeCpuRasterizer()->Backward(model, *context, ones, &grads);
+      FAIL() << "the backward pass ran";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("no backward pass"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+TEST(RenderConventions, OutOfRangeValuesAndOtherRenderersFailInOneLine) {
+  const GaussianModel model = OneSplat(32, 24, 4);
+  RenderConventions bad;
+  bad.cull_centre_outside = -1;
+  EXPECT_THROW(Render(model, AxisCamera(), bad), Error);
+  bad.cull_centre_outside = NAN;
+  EXPECT_THROW(Render(model, AxisCamera(), bad), Error);
+  bad = RenderConventions();
+  bad.extent_cap_px = -5;
+  EXPECT_THROW(Render(model, AxisCamera(), bad), Error);
+  bad = RenderConventions();
+  bad.dilation_px2 = 0.5;
+  EXPECT_THROW(Render(model, AxisCamera(), bad), Error);
+  EXPECT_NO_THROW(RequireDefaultConventions(RenderConventions(), "x"));
+  try {
+    RequireDefaultConventions(Web(), "the CUDA rasterizer");
+    FAIL() << "non-default conventions were accepted";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.find('\n'), std::string::npos);
+    EXPECT_NE(message.find("the CUDA rasterizer"), std::string::npos);
+  }
+  EXPECT_EQ(EffectiveShDegree(-1, 3, RenderConventions()), 3);
+  EXPECT_EQ(EffectiveShDegree(2, 3, RenderConventions()), 2);
+  EXPECT_EQ(EffectiveShDegree(5, 1, RenderConventions()), 1);
+  EXPECT_EQ(EffectiveShDegree(-1, 3, Web()), 0);
+}
+
+}  // namespace
+}  // namespace watergs
