@@ -525,6 +525,10 @@ CLAIMS = [
     Claim("(`--pool 2 --highpass 2`) one held-out view reads {}% and one free viewpoint {}% at {} dB\n(`residual2_pool2_inria`)",
           probe("residual2_pool2_inria", "held", BLIND), grep(BLIND, r"^residual2_pool2_inria\s.*?\| free\s+([\d.]+)%"),
           probe("residual2_pool2_inria", "vs raw", BLIND)),
+    Claim("same decoder reads {}% per held-out view and {}% per free viewpoint at {} dB\n(`residual2_pool2_lr02_mse50`)",
+          probe("residual2_pool2_lr02_mse50", "held", BLIND),
+          grep(BLIND, r"^residual2_pool2_lr02_mse50\s.*?\| free\s+([\d.]+)%"),
+          probe("residual2_pool2_lr02_mse50", "vs raw", BLIND)),
     Claim("at `--blind_weight 1` the owner reads one held-out view at {}%\nand a reader without the raw model finds the "
           "message over the 48 cameras ({} of 48 bits wrong,\n\"present\") at {} dB from the raw renders",
           probe("both_w1_m0", "owner held", BOTH),
