@@ -38,8 +38,8 @@ group build 1 "" "compiler, CMake and the libraries watergs links, GoogleTest (t
   build-essential cmake git pkg-config libeigen3-dev libopencv-dev libceres-dev \
   libboost-program-options-dev libgoogle-glog-dev libgtest-dev libgmock-dev nlohmann-json3-dev \
   libnanoflann-dev libomp-dev zlib1g-dev libssl-dev libzstd-dev libzip-dev libwebp-dev libsqlite3-dev libexif-dev
-group tests "$want_tests" --tests "the test suite: clang-format (format check), COLMAP 3.8 (compatibility tests), gnuplot (plot check), a single-node Slurm with munge (batch test), PyYAML (Kubernetes manifests), Chromium (report screenshot test), pybind11, Python headers, numpy and pytest (the Python module and its tests)" \
-  clang-format colmap gnuplot-nox python3 slurm-wlm munge python3-yaml chromium \
+group tests "$want_tests" --tests "the test suite: clang-format (format check), COLMAP 3.8 (compatibility tests), gnuplot (plot check), a single-node Slurm with munge (batch test), PyYAML (Kubernetes manifests), Chromium (report screenshot and web viewer tests), ffmpeg (the viewer test's screen recording), pybind11, Python headers, numpy and pytest (the Python module and its tests)" \
+  clang-format colmap gnuplot-nox python3 slurm-wlm munge python3-yaml chromium ffmpeg \
   pybind11-dev python3-dev python3-numpy python3-pytest
 group regen "$want_all" --all "regenerating the data: POV-Ray (datasets_scripts/make_demo_scene.sh), unzip and curl (download_*.sh); the committed data needs none" \
   povray povray-includes unzip curl
