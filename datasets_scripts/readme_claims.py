@@ -195,6 +195,7 @@ NULL = "results/owner_reading/owner_null.md"
 BLIND = "results/blind_designs/results.txt"
 LEGO = "results/nerf_synthetic_lego/tables.md"
 BOTH = "results/reading_both/results.txt"
+RECORDING = "results/viewers/recording/recording.tsv"
 LEGO_OWNER = ("owner_seed0", "owner_seed1", "owner_seed2")
 LEGO_BLIND = ("blind_seed0", "blind_seed1", "blind_seed2")
 LEGO_RAW = "results/nerf_synthetic_lego/raw.log"
@@ -529,6 +530,14 @@ CLAIMS = [
           probe("residual2_pool2_lr02_mse50", "held", BLIND),
           grep(BLIND, r"^residual2_pool2_lr02_mse50\s.*?\| free\s+([\d.]+)%"),
           probe("residual2_pool2_lr02_mse50", "vs raw", BLIND)),
+    Claim("fly-through of the demo's watermarked file ({} frames between two held-out cameras, H.264 CRF 23 at {} kbit/s), "
+          "read as the owner by `detect` | \"present\" from frame {}; {} of {} frames \"present\" alone (mean {}% a frame), "
+          "all together {} of 48 wrong; the raw model's recording \"absent\" ({} of 48)",
+          grep(RECORDING, r"^gs3d_wm\t\d+\t\d+ of (\d+)"), grep(RECORDING, r"^gs3d_wm\t(\d+)"),
+          grep(RECORDING, r"^gs3d_wm\t(?:[^\t]*\t){6}(\d+)"), grep(RECORDING, r"^gs3d_wm\t(?:[^\t]*\t){4}(\d+) /"),
+          grep(RECORDING, r"^gs3d_wm\t\d+\t\d+ of (\d+)"), grep(RECORDING, r"^gs3d_wm\t(?:[^\t]*\t){3}([\d.]+)%"),
+          grep(RECORDING, r"^gs3d_wm\t(?:[^\t]*\t){5}\w+ \((\d+) of 48\)"),
+          grep(RECORDING, r"^gs3d_raw\t(?:[^\t]*\t){5}\w+ \((\d+) of 48\)")),
     Claim("at `--blind_weight 1` the owner reads one held-out view at {}%\nand a reader without the raw model finds the "
           "message over the 48 cameras ({} of 48 bits wrong,\n\"present\") at {} dB from the raw renders",
           probe("both_w1_m0", "owner held", BOTH),
