@@ -196,6 +196,7 @@ BLIND = "results/blind_designs/results.txt"
 LEGO = "results/nerf_synthetic_lego/tables.md"
 BOTH = "results/reading_both/results.txt"
 RECORDING = "results/viewers/recording/recording.tsv"
+VIEWER_BER = "results/viewers/reference_conventions/ber.tsv"
 LEGO_OWNER = ("owner_seed0", "owner_seed1", "owner_seed2")
 LEGO_BLIND = ("blind_seed0", "blind_seed1", "blind_seed2")
 LEGO_RAW = "results/nerf_synthetic_lego/raw.log"
@@ -538,6 +539,12 @@ CLAIMS = [
           grep(RECORDING, r"^gs3d_wm\t\d+\t\d+ of (\d+)"), grep(RECORDING, r"^gs3d_wm\t(?:[^\t]*\t){3}([\d.]+)%"),
           grep(RECORDING, r"^gs3d_wm\t(?:[^\t]*\t){5}\w+ \((\d+) of 48\)"),
           grep(RECORDING, r"^gs3d_raw\t(?:[^\t]*\t){5}\w+ \((\d+) of 48\)")),
+    Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}% (watergs' reference: {}%); PlayCanvas {} of 6, {}% ({}%); "
+          "the raw model's screenshots \"absent\" {} of 6 and {} of 6 | {} dB |",
+          grep(VIEWER_BER, r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"), grep(VIEWER_BER, r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"), grep(VIEWER_BER, r"^watergs\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(VIEWER_BER, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"), grep(VIEWER_BER, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"), grep(VIEWER_BER, r"^watergs\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(VIEWER_BER, r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"), grep(VIEWER_BER, r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
+          grep("results/viewers/reference_conventions/README.md", r"\(`wm_embed.log`; ([\d.]+) dB from")),
     Claim("at `--blind_weight 1` the owner reads one held-out view at {}%\nand a reader without the raw model finds the "
           "message over the 48 cameras ({} of 48 bits wrong,\n\"present\") at {} dB from the raw renders",
           probe("both_w1_m0", "owner held", BOTH),
