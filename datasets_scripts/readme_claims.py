@@ -195,6 +195,7 @@ NULL = "results/owner_reading/owner_null.md"
 BLIND = "results/blind_designs/results.txt"
 LEGO = "results/nerf_synthetic_lego/tables.md"
 BOTH = "results/reading_both/results.txt"
+BOTH_R2P2 = ("r2p2_both_w0.5_m0", "r2p2_both_w0.5_m0_s1", "r2p2_both_w0.5_m0_s2")
 RECORDING = "results/viewers/recording/recording.tsv"
 VIEWER_BER = "results/viewers/reference_conventions/ber.tsv"
 LEGO_OWNER = ("owner_seed0", "owner_seed1", "owner_seed2")
@@ -545,6 +546,15 @@ CLAIMS = [
           grep(VIEWER_BER, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"), grep(VIEWER_BER, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"), grep(VIEWER_BER, r"^watergs\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
           grep(VIEWER_BER, r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"), grep(VIEWER_BER, r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
           grep("results/viewers/reference_conventions/README.md", r"\(`wm_embed.log`; ([\d.]+) dB from")),
+    Claim("| as the owner {} / {} / {}% per held-out view / 48 free viewpoints {} / {} / {}%; read blind (without the raw model): "
+          "the 48 cameras together {} of 48 wrong on each seed (\"present\"), one held-out view alone {}-{}% | **{} / {} / {} dB** | "
+          "{} -> {} / {} / {} |",
+          *[probe(l, "owner held", BOTH) for l in BOTH_R2P2], *[probe(l, "free48", BOTH) for l in BOTH_R2P2],
+          highest(*[grep(f"results/reading_both/runs/{l}/all48.txt", r"aggregated over the 48 views .*\((\d+) of 48 bits\)")
+                    for l in BOTH_R2P2]),
+          span(*[probe(l, "held", BOTH) for l in BOTH_R2P2]), *[probe(l, "vs raw", BOTH) for l in BOTH_R2P2],
+          grep("results/blind_designs/raw_train.log", r"^train: held-out views \(6\): PSNR ([\d.]+)"),
+          *[probe(l, "PSNR", BOTH) for l in BOTH_R2P2]),
     Claim("at `--blind_weight 1` the owner reads one held-out view at {}%\nand a reader without the raw model finds the "
           "message over the 48 cameras ({} of 48 bits wrong,\n\"present\") at {} dB from the raw renders",
           probe("both_w1_m0", "owner held", BOTH),
