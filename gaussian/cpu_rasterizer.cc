@@ -108,22 +108,6 @@ size_t CpuRenderContext::Bytes() const {
          blend.n_contrib.capacity() * sizeof(uint32_t) + visible.capacity();
 }
 
-void CheckRenderConventions(const RenderConventions& conventions) {
-  const double cull = conventions.cull_centre_outside;
-  if (!(cull == 0 || (cull > 0 && std::isfinite(cull)))) {
-    Fail(
-        "render: the centre cull must be 0 (none) or a positive multiple "
-        "of the frame");
-  }
-  if (conventions.extent_cap_px < 0) {
-    Fail("render: the extent cap must be 0 (none) or positive pixels");
-  }
-  const double dilation = conventions.dilation_px2;
-  if (!(dilation == -1 || (dilation >= 0 && dilation <= kCovDilation))) {
-    Fail("render: the dilation must be -1 (Inria's 0.3) or in [0, 0.3] px^2");
-  }
-}
-
 PixelRect ResolveRenderRect(const RenderCamera& camera,
                             const RenderOptions& options) {
   if (camera.width <= 0 || camera.height <= 0) {

@@ -56,10 +56,6 @@ class CpuRasterizer : public Rasterizer {
                               std::vector<double>* weights) override;
 };
 
-// Fails in one line on conventions out of range (a centre cull below 1
-// other than 0, a negative extent cap).
-void CheckRenderConventions(const RenderConventions& conventions);
-
 // Checks the options against the camera and model; returns the pixel rect
 // to render (the full frame when options.rect is empty). Throws Error.
 PixelRect ResolveRenderRect(const RenderCamera& camera,

@@ -2,7 +2,9 @@
 #include "gaussian/render_conventions.h"
 
 #include <algorithm>
+#include <cmath>
 
+#include "gaussian/projection.h"
 #include "gaussian/util/error.h"
 
 namespace watergs {
@@ -62,6 +64,22 @@ const NamedRenderConventions& FindRenderConventions(const std::string& name,
   }
   Fail(option + ": unknown render conventions '" + Printable(name) +
        "' (one of " + RenderConventionNames(", ") + ")");
+}
+
+void CheckRenderConventions(const RenderConventions& conventions) {
+  const double cull = conventions.cull_centre_outside;
+  if (!(cull == 0 || (cull > 0 && std::isfinite(cull)))) {
+    Fail(
+        "render: the centre cull must be 0 (none) or a positive multiple "
+        "of the frame");
+  }
+  if (conventions.extent_cap_px < 0) {
+    Fail("render: the extent cap must be 0 (none) or positive pixels");
+  }
+  const double dilation = conventions.dilation_px2;
+  if (!(dilation == -1 || (dilation >= 0 && dilation <= kCovDilation))) {
+    Fail("render: the dilation must be -1 (Inria's 0.3) or in [0, 0.3] px^2");
+  }
 }
 
 void RequireDefaultConventions(const RenderConventions& conventions,

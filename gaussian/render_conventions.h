@@ -70,6 +70,11 @@ std::string RenderConventionsHelp();
 const NamedRenderConventions& FindRenderConventions(const std::string& name,
                                                     const std::string& option);
 
+// Fails in one line on values out of range: a centre cull neither 0 nor a
+// finite positive multiple, a negative extent cap, a dilation outside
+// [0, 0.3] other than -1.
+void CheckRenderConventions(const RenderConventions& conventions);
+
 // Fails in one line when `conventions` are not the default: for renderers
 // that implement none of them (`who` names it, e.g. "the CUDA rasterizer").
 void RequireDefaultConventions(const RenderConventions& conventions,

@@ -182,7 +182,7 @@ std::vector<ImageRGB> SamplePhotoCrops(const std::vector<cv::Mat>& photos,
 void BlurCropsRandomly(std::vector<ImageRGB>* crops, double max_sigma,
                        uint32_t seed) {
   if (!(max_sigma >= 0) || max_sigma > 64)
-    Fail("make_decoder: --calibration_blur must be in [0, 64] pixels");
+    Fail("make_decoder: the calibration blur must be in [0, 64] pixels");
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> sigma_of(0.0, max_sigma);
   for (ImageRGB& crop : *crops) {
