@@ -14,7 +14,7 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 out=${1:?usage: detect_probe.sh OUT RAW WM [KEY]}; raw=${2:?RAW}; wm=${3:?WM}; key=${4:-}
 bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
 scene="${SCENE:-$root/datasets_scripts/demo_scene}"
-decoder="${DECODER:-$root/watermark/models/decoder_48.bin}"
+decoder="${DECODER:-$root/watermark/models/decoder_48_residual_pool2.bin}"
 ds="${DOWNSCALE:-2}"; msg="${MESSAGE:-text:WGS-26}"
 # The renders' width at that downscale: every file is decoded back at that scale (detect --decode_width).
 width="${WIDTH:-240}"

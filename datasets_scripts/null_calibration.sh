@@ -15,7 +15,7 @@ set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 out=${1:?usage: null_calibration.sh OUT [NAME=PLY:WORKSPACE ...]}; shift
 bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
-decoder="${DECODER:-$root/watermark/models/decoder_48.bin}"
+decoder="${DECODER:-$root/watermark/models/decoder_48_residual_pool2.bin}"
 ds="${DOWNSCALE:-2}"; views="${VIEWS:-4000}"; keys="${KEYS:-100000}"
 models=("$@")
 [ ${#models[@]} -gt 0 ] || models=("demo=$root/build/demo/train/point_cloud.ply:$root/datasets_scripts/demo_scene")

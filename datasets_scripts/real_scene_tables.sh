@@ -7,7 +7,9 @@
 # raw renders) and evaluates the paper's four 3D distortions on the held-out views (eval: BER per
 # rendered image, PSNR, SSIM). Resumable: every finished step is kept and skipped on a re-run (the
 # training checkpoints every 500 iterations).
-#   datasets_scripts/real_scene_tables.sh SCENE OUT [RUN ...]   (default runs: owner:0 owner:1 owner:2 blind:0)
+# Each run's file is also read blind over every camera of the workspace together (all_blind.json).
+#   datasets_scripts/real_scene_tables.sh SCENE OUT [RUN ...]   (default runs: both:0 both:1 both:2 blind:0;
+#   both is embed's default reading)
 # A RUN of READING:SEED:STOP:NAME:EMBED ARGS (STOP may be empty) is an ablation: label
 # READING_seedSEED_NAME, the words after the fourth colon added to embed's options, e.g.
 #   'owner:0::nodl:--distortions none'   'owner:0::xyz:--mask xyz --distortions none'
@@ -23,9 +25,9 @@ scene=${1:?usage: real_scene_tables.sh SCENE OUT [READING:SEED ...]}
 out=${2:?usage: real_scene_tables.sh SCENE OUT [READING:SEED ...]}
 shift 2
 runs=("$@")
-[ ${#runs[@]} -eq 0 ] && runs=(owner:0 owner:1 owner:2 blind:0)
+[ ${#runs[@]} -eq 0 ] && runs=(both:0 both:1 both:2 blind:0)
 bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
-decoder="${DECODER:-$root/watermark/models/decoder_48.bin}"
+decoder="${DECODER:-$root/watermark/models/decoder_48_residual_pool2.bin}"
 ds="${DOWNSCALE:-2}"
 iterations="${ITERATIONS:-7000}"
 draws="${ATTACK_DRAWS:-1}"
@@ -78,6 +80,12 @@ for run in "${runs[@]}"; do
       --attacks identity,gn:0.01,dropout:0.1,crop:0.1 --image_attacks '' --lpips_weights '' \
       --attack_draws "$draws" "${background[@]}" \
       --output_path "$dir/table1" > "$dir/table1.txt" 2>&1
+  fi
+  if [ ! -f "$dir/all_blind.json" ]; then
+    log "reading $label blind over every camera together"
+    "$bin" extract --input_path "$dir/wm.ply" --workspace_path "$scene" --downscale "$ds" \
+      --decoder "$decoder" --message "$msg" "${background[@]}" \
+      --json "$dir/all_blind.json" > "$dir/all_blind.txt" 2>&1
   fi
 done
 /usr/bin/python3 "$root/datasets_scripts/aggregate_real_scene.py" "$out" > "$out/tables.md.part"

@@ -17,7 +17,7 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 out=${1:?usage: single_view_probe.sh OUT LABEL [embed options...]}; label=${2:?label}; shift 2
 bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
 scene="${SCENE:-$root/datasets_scripts/demo_scene}"
-decoder="${DECODER:-$root/watermark/models/decoder_48.bin}"
+decoder="${DECODER:-$root/watermark/models/decoder_48_residual_pool2.bin}"
 ds="${DOWNSCALE:-2}"
 raw="${RAW:-$out/raw/point_cloud.ply}"
 free_views="${FREE_VIEWS:-48}"

@@ -12,7 +12,7 @@ import watergs
 
 root = pathlib.Path(__file__).resolve().parent.parent
 scene = root / "datasets_scripts" / "demo_scene"
-decoder = root / "watermark" / "models" / "decoder_48.bin"
+decoder = root / "watermark" / "models" / "decoder_48_residual_pool2.bin"
 out = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "quickstart_out")
 message = "text:WGS-26"  # 6 characters: the decoder's 48 bits
 common = dict(downscale=4, quiet=True)  # 120x90 pixels

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 #include <vector>
 
 namespace watergs {
@@ -37,22 +38,25 @@ double Rms(const std::vector<double>& r) {
 }
 
 // Residuals: the blurred render at the moved camera minus the blurred image.
-// The Jacobian is a forward difference over renders, steps of `step_px`
-// (each parameter is scaled to pixels, so one step fits all).
+// The Jacobian: from the image gradient where a depth map of the start is
+// given (GradientJacobian), else a forward difference over renders, steps of
+// `step_px` (each parameter is scaled to pixels, so one step fits all).
 class RenderAlignmentCost : public ceres::CostFunction {
  public:
   // The first `free` of the 9 parameters move (6: the pose alone).
   RenderAlignmentCost(const std::vector<float>& target,
                       const RenderCamera& camera, double depth, int free,
                       const CameraRenderer& render,
-                      const PhotometricOptions& options, int* renders)
+                      const PhotometricOptions& options, int* renders,
+                      std::vector<float> depth_map = {})
       : free_(free),
         target_(target),
         camera_(camera),
         depth_(depth),
         render_(render),
         options_(options),
-        renders_(renders) {
+        renders_(renders),
+        depth_map_(std::move(depth_map)) {
     set_num_residuals(int(target.size()));
     mutable_parameter_block_sizes()->push_back(free);
   }
@@ -61,8 +65,17 @@ class RenderAlignmentCost : public ceres::CostFunction {
                 double** jacobians) const override {
     double x[kParameters] = {0};
     std::copy(parameters[0], parameters[0] + free_, x);
-    Residuals(x, residuals);
+    const std::vector<float> blurred = BlurredRender(x);
+    for (size_t i = 0; i < target_.size(); ++i) {
+      residuals[i] = double(blurred[i]) - double(target_[i]);
+    }
     if (jacobians == nullptr || jacobians[0] == nullptr) return true;
+    if (!depth_map_.empty()) {
+      const std::vector<double> jacobian =
+          GradientJacobian(blurred, depth_map_, camera_, depth_, x, free_);
+      std::copy(jacobian.begin(), jacobian.end(), jacobians[0]);
+      return true;
+    }
     const size_t n = target_.size();
     std::vector<double> moved(n);
     for (int j = 0; j < free_; ++j) {
@@ -80,15 +93,19 @@ class RenderAlignmentCost : public ceres::CostFunction {
 
   // x: all 9 parameters.
   void Residuals(const double* x, double* out) const {
-    const ImageRGB rendered = render_(MoveCamera(camera_, depth_, x));
-    ++*renders_;
-    const std::vector<float> blurred = Blurred(rendered, options_.blur_sigma);
+    const std::vector<float> blurred = BlurredRender(x);
     for (size_t i = 0; i < target_.size(); ++i) {
       out[i] = double(blurred[i]) - double(target_[i]);
     }
   }
 
  private:
+  std::vector<float> BlurredRender(const double* x) const {
+    const ImageRGB rendered = render_(MoveCamera(camera_, depth_, x));
+    ++*renders_;
+    return Blurred(rendered, options_.blur_sigma);
+  }
+
   const int free_;
   const std::vector<float>& target_;
   const RenderCamera camera_;
@@ -96,6 +113,7 @@ class RenderAlignmentCost : public ceres::CostFunction {
   const CameraRenderer& render_;
   const PhotometricOptions options_;
   int* renders_;
+  const std::vector<float> depth_map_;
 };
 
 }  // namespace
@@ -117,6 +135,59 @@ RenderCamera MoveCamera(const RenderCamera& camera, double depth,
   moved.cx = camera.cx + delta[7];
   moved.cy = camera.cy + delta[8];
   return moved;
+}
+
+std::vector<double> GradientJacobian(const std::vector<float>& blurred,
+                                     const std::vector<float>& depth_map,
+                                     const RenderCamera& camera, double depth,
+                                     const double* x, int free) {
+  const int w = camera.width, h = camera.height;
+  const RenderCamera at = MoveCamera(camera, depth, x);
+  // A pixel's image motion under parameter j: where its point (at its depth)
+  // projects once the camera takes a small step in j, in double.
+  constexpr double kStep = 1e-4;
+  std::vector<RenderCamera> stepped;
+  for (int j = 0; j < free; ++j) {
+    double y[kParameters];
+    std::copy(x, x + kParameters, y);
+    y[j] += kStep;
+    stepped.push_back(MoveCamera(camera, depth, y));
+  }
+  std::vector<double> jacobian(blurred.size() * size_t(free), 0.0);
+  for (int v = 0; v < h; ++v) {
+    const int v0 = std::max(v - 1, 0), v1 = std::min(v + 1, h - 1);
+    for (int u = 0; u < w; ++u) {
+      const int u0 = std::max(u - 1, 0), u1 = std::min(u + 1, w - 1);
+      const size_t p = size_t(v) * w + u;
+      double z = depth_map[p];
+      if (!(z > 0) || !std::isfinite(z)) z = depth;
+      const Eigen::Vector3d in_at((u - at.cx) / at.fx * z,
+                                  (v - at.cy) / at.fy * z, z);
+      const Eigen::Vector3d world = at.R.transpose() * (in_at - at.t);
+      double gx[3], gy[3];
+      for (int c = 0; c < 3; ++c) {
+        gx[c] = (double(blurred[(size_t(v) * w + u1) * 3 + c]) -
+                 double(blurred[(size_t(v) * w + u0) * 3 + c])) /
+                std::max(1, u1 - u0);
+        gy[c] = (double(blurred[(size_t(v1) * w + u) * 3 + c]) -
+                 double(blurred[(size_t(v0) * w + u) * 3 + c])) /
+                std::max(1, v1 - v0);
+      }
+      for (int j = 0; j < free; ++j) {
+        const RenderCamera& s = stepped[j];
+        const Eigen::Vector3d in_s = s.R * world + s.t;
+        if (!(in_s.z() > 0)) continue;
+        const double du = (s.fx * in_s.x() / in_s.z() + s.cx - u) / kStep;
+        const double dv = (s.fy * in_s.y() / in_s.z() + s.cy - v) / kStep;
+        // The render moved by (du, dv): its value at a pixel is what was
+        // (du, dv) before it.
+        for (int c = 0; c < 3; ++c) {
+          jacobian[(p * 3 + c) * free + j] = -(gx[c] * du + gy[c] * dv);
+        }
+      }
+    }
+  }
+  return jacobian;
 }
 
 double CameraMotionPx(const RenderCamera& a, const RenderCamera& b,
@@ -148,8 +219,16 @@ std::pair<RenderCamera, double> Align(const std::vector<float>& target,
                                       int free, const CameraRenderer& render,
                                       const PhotometricOptions& options,
                                       int* renders) {
+  std::vector<float> depth_map;
+  if (options.depth_map) {
+    depth_map = options.depth_map(start);
+    ++*renders;
+    if (depth_map.size() != size_t(start.width) * start.height) {
+      depth_map.clear();  // not this camera's: finite differences
+    }
+  }
   auto* cost = new RenderAlignmentCost(target, start, depth, free, render,
-                                       options, renders);
+                                       options, renders, std::move(depth_map));
   double x[kParameters] = {0};
   ceres::Problem problem;
   problem.AddResidualBlock(cost, nullptr, x);

@@ -4,8 +4,11 @@
 // Feature registration (plugin/image_registration.h) gets within a few
 // tenths of a pixel; this step moves the pose, focal length and principal
 // point to where the blurred render matches the blurred image best in least
-// squares (Ceres' Levenberg-Marquardt, finite-difference Jacobians over
-// renders), the direct alignment of photometric SLAM and bundle adjustment.
+// squares (Ceres' Levenberg-Marquardt), the direct alignment of photometric
+// SLAM and bundle adjustment. The Jacobian is the blurred render's image
+// gradient times each parameter's image motion (one render a solver step)
+// where the raw model's depth is given, else finite differences over renders
+// (one render per parameter a step).
 #pragma once
 
 #include <functional>
@@ -18,6 +21,10 @@ namespace watergs {
 
 // Renders the raw model at a camera (RGB in [0, 1], the camera's size).
 using CameraRenderer = std::function<ImageRGB(const RenderCamera&)>;
+
+// The raw model's z-depth at a camera (H x W, world units; NaN or <= 0 where
+// it leaves a pixel uncovered).
+using DepthRenderer = std::function<std::vector<float>(const RenderCamera&)>;
 
 struct PhotometricOptions {
   // Gaussian blur (pixels) of both images before comparing: widens the basin
@@ -36,6 +43,10 @@ struct PhotometricOptions {
   // the demo's free views, the pose 0.05-0.43 px off instead of 0.03-0.25).
   bool refine_intrinsics = true;
   double intrinsics_gain = 0.03;
+  // Given: the Jacobian from the image gradient and the depth (rendered once
+  // per start); empty: finite differences over renders, 7-10 times the
+  // renders (docs/history.md, "detect's cost").
+  DepthRenderer depth_map;
 };
 
 struct PhotometricResult {
@@ -73,6 +84,16 @@ RenderCamera MoveCamera(const RenderCamera& camera, double depth,
 // H x W x 3 floats of `image`, blurred by `sigma` pixels (none at 0): what
 // the photometric fits compare.
 std::vector<float> Blurred(const ImageRGB& image, double sigma);
+
+// The Jacobian of the blurred render at MoveCamera(camera, depth, x) with
+// respect to the first `free` entries of x, from the image gradient of
+// `blurred` (H x W x 3, rendered there) and the raw model's z-depth at
+// `camera` (H x W; uncovered pixels take `depth`): row-major, one row per
+// value of `blurred`. Exposed for the test against finite differences.
+std::vector<double> GradientJacobian(const std::vector<float>& blurred,
+                                     const std::vector<float>& depth_map,
+                                     const RenderCamera& camera, double depth,
+                                     const double* x, int free);
 
 // Largest distance (pixels) between where `a` and `b` put the points at
 // `depth` behind the image's corners and centre, as seen by `a`.

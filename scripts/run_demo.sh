@@ -10,13 +10,13 @@
 #   scripts/run_demo.sh [OUTPUT_DIR]
 # Environment: WATERGS_BIN (the CLI), DEMO_SCENE (another workspace whose
 # images are 480x360), WATERGS_DECODER (decoder weights;
-# default watermark/models/decoder_48.bin), DEMO_TRAIN_ITERS, DEMO_EMBED_ITERS.
+# default: the shipped decoder, watermark/models/decoder_48_residual_pool2.bin), DEMO_TRAIN_ITERS, DEMO_EMBED_ITERS.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
 scene="${DEMO_SCENE:-$root/datasets_scripts/demo_scene}"
 out="${1:-$root/build/demo}"
-decoder="${WATERGS_DECODER:-$root/watermark/models/decoder_48.bin}"
+decoder="${WATERGS_DECODER:-$root/watermark/models/decoder_48_residual_pool2.bin}"
 train_iters="${DEMO_TRAIN_ITERS:-2000}"
 embed_iters="${DEMO_EMBED_ITERS:-1500}"
 message="text:WGS-26"

@@ -252,6 +252,9 @@ struct OwnerReadingOptions {
   std::string index_cache;
   // --reference_conventions: "auto" or one name of the registry.
   std::string reference_conventions = "auto";
+  // --refine_jacobian: "gradient" (the image gradient and the raw model's
+  // depth: one render a solver step) or "renders" (finite differences).
+  std::string refine_jacobian = "gradient";
 };
 
 OwnerImages ReadAsOwner(const std::vector<std::string>& files,
@@ -324,6 +327,16 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
   };
   // The index is built from watergs' renders whatever the reference.
   const CameraRenderer render = renderer_for(RenderConventions());
+  const DepthRenderer depth_of = [&](const RenderCamera& camera) {
+    std::vector<float> depth =
+        RenderDepth(*rasterizer, raw.model, TransformCamera(camera, to_model));
+    for (float& d : depth) d /= to_model.scale;  // workspace units
+    return depth;
+  };
+  PhotometricOptions refine_options;
+  if (reading.refine_jacobian == "gradient") {
+    refine_options.depth_map = depth_of;
+  }
   std::vector<CameraRenderer> candidate_renders;
   for (const NamedRenderConventions& c : out.candidates) {
     candidate_renders.push_back(renderer_for(c.conventions));
@@ -337,12 +350,7 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
           bar.Update(done++);
           return render(camera);
         },
-        [&](const RenderCamera& camera) {
-          std::vector<float> depth = RenderDepth(
-              *rasterizer, raw.model, TransformCamera(camera, to_model));
-          for (float& d : depth) d /= to_model.scale;  // workspace units
-          return depth;
-        });
+        depth_of);
     bar.Finish(std::to_string(registrar->IndexSize()) +
                " features on the photos and renders");
   }
@@ -381,7 +389,8 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
       // Every pose the matches support: the one the render fits best wins.
       std::vector<RenderCamera> starts = {r.camera, r.guessed_camera};
       starts.insert(starts.end(), r.alternatives.begin(), r.alternatives.end());
-      refined = RefinePhotometrically(images[k], starts, r.depth, like_file[0]);
+      refined = RefinePhotometrically(images[k], starts, r.depth, like_file[0],
+                                      refine_options);
       r.camera = refined.camera;
       out.refinement_s += SecondsSince(start);
     }
@@ -400,8 +409,9 @@ OwnerImages ReadAsOwner(const std::vector<std::string>& files,
         // The first refinement fitted another renderer's image: the pose
         // again, under the conventions that match the image.
         start = std::chrono::steady_clock::now();
-        rerefined = RefinePhotometrically(images[k], {r.camera}, r.depth,
-                                          like_file[choice.best]);
+        rerefined =
+            RefinePhotometrically(images[k], {r.camera}, r.depth,
+                                  like_file[choice.best], refine_options);
         if (rerefined.applied) {
           r.camera = rerefined.camera;
           references[choice.best] = like_file[choice.best](r.camera);
@@ -515,6 +525,10 @@ int RunDetect(int argc, char** argv) {
              "render matches the image best (photometric least squares): "
              "the difference reading needs the render within a fraction of "
              "a pixel");
+  parser.Add("refine_jacobian", &reading.refine_jacobian,
+             "How the refinement finds its steps: gradient (the render's "
+             "image gradient and the raw model's depth, one render a step) "
+             "or renders (finite differences, 7-10 renders a step)");
   parser.Add("reference_conventions", &reading.reference_conventions,
              "The renderer the raw model's reference imitates: auto (each "
              "in turn, per image the one whose render matches the "
@@ -547,6 +561,11 @@ int RunDetect(int argc, char** argv) {
     Fail("--decode_width must be in [0, " + std::to_string(kMaxSideAsIs) + "]");
   }
   ReferenceCandidates(reading.reference_conventions);  // fails on a typo
+  if (reading.refine_jacobian != "gradient" &&
+      reading.refine_jacobian != "renders") {
+    Fail("detect: --refine_jacobian gradient or renders, not '" +
+         reading.refine_jacobian + "'");
+  }
   if (num_threads > 0) omp_set_num_threads(num_threads);
   if (!json_path.empty()) CheckOutputFile(json_path);
   if (!parser.Given("index_cache") && !raw_path.empty()) {
@@ -777,7 +796,8 @@ int RunDetect(int argc, char** argv) {
           e["reference"] = {{"conventions", owner.candidates[choice.best].name},
                             {"psnr", psnr},
                             {"refined_again", again.applied},
-                            {"refined_again_px", again.moved_px}};
+                            {"refined_again_px", again.moved_px},
+                            {"refined_again_renders", again.renders}};
           const RenderCamera& c = g.camera;
           e["camera"] = {
               {"fx", c.fx},

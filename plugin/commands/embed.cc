@@ -67,11 +67,14 @@ struct EmbedArgs {
   std::string jpeg_layer = "none";
   double margin = 1;
   std::string fidelity = "input";
-  // The reading the message term optimises: blind (the decoder's logits) or
-  // owner (their difference from the raw model's at the same viewpoint).
-  std::string reading = "owner";
-  // --reading both: the blind term beside the owner's reading.
-  double blind_weight = 1, blind_margin = 0;
+  // The reading the message term optimises: blind (the decoder's logits),
+  // owner (their difference from the raw model's at the same viewpoint) or
+  // both. The default serves both readers from one file: the owner's reading
+  // at its fidelity, and a half-weight blind term (sign only) that lets a
+  // reader without the raw model find the message over many views
+  // (docs/decoder_design.md, "one file for both readers").
+  std::string reading = "both";
+  double blind_weight = 0.5, blind_margin = 0;
   double mse_weight = 50;
   double masking = 0;
   // Multiplies every optimiser rate: Adam moves each parameter by about its
@@ -354,7 +357,7 @@ int RunEmbed(int argc, char** argv) {
              "The reading the embedding optimises: blind (the decoder's "
              "logits, what extract reads alone) or owner (logits minus the "
              "raw model's at the same viewpoint, what extract --raw_path "
-             "reads), or both (the owner's, plus a blind term: "
+             "reads), or both (the default: the owner's, plus a blind term: "
              "--blind_weight, --blind_margin). blind also sets the blind "
              "defaults of --margin 3, --fidelity photos, --mse_weight 0, "
              "--lr_scale 1 (unless given)");

@@ -7,9 +7,9 @@ lists them) and return result objects with numpy arrays::
 
     import watergs
     trained = watergs.train("scene", "out/train", downscale=2, iterations=2000)
-    marked = watergs.embed(trained.ply_path, "scene", "decoder_48.bin",
+    marked = watergs.embed(trained.ply_path, "scene", "decoder_48_residual_pool2.bin",
                            "text:WGS-26", "out/wm.ply", downscale=2)
-    result = watergs.extract(marked.output_path, "scene", "decoder_48.bin",
+    result = watergs.extract(marked.output_path, "scene", "decoder_48_residual_pool2.bin",
                              message="text:WGS-26", downscale=2)
     print(result.verdict, result.p_value, result.view_ber)
 

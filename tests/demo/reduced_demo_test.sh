@@ -10,8 +10,8 @@
 #    would read "absent" by the tie rule alone);
 #  - the watermarked file and its gn / dropout / crop copies read "present" over all cameras;
 #  - the watermarked file read blind over all cameras (the decoder alone; the default embedding
-#    optimises the owner's reading, and the blind one only follows): one view reads at most
-#    MAX_BLIND_VIEW_BER of the bits wrong on average, and the raw model at least MIN_RAW_VIEW_BER;
+#    serves both readers): "present" together, one view at most MAX_BLIND_VIEW_BER of the bits wrong
+#    on average, and the raw model at least MIN_RAW_VIEW_BER;
 #  - the 6 held-out cameras (unseen in training and embedding) read "present" together, and one
 #    held-out view alone reads at most MAX_MEAN_ERRORS of 48 bits wrong on average, at most
 #    MAX_P90_ERRORS at the 90th percentile;
@@ -23,16 +23,17 @@ set -euo pipefail
 bin="${WATERGS_BIN:?WATERGS_BIN: the watergs CLI}"
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 scene="$root/datasets_scripts/demo_scene"
-decoder="$root/watermark/models/decoder_48.bin"
+decoder="$root/watermark/models/decoder_48_residual_pool2.bin"  # every command's default
 message="text:WGS-26"
 MAX_MEAN_ERRORS="${MAX_MEAN_ERRORS:-3}"  # of 48, mean over the 6 held-out views as the owner (measured 1.50)
 MAX_P90_ERRORS="${MAX_P90_ERRORS:-4}"    # measured 2
-MIN_PSNR_VS_RAW="${MIN_PSNR_VS_RAW:-36}"  # dB, held-out views (measured 38.03)
-# Blind single views over all cameras, the fraction of bits wrong on average: the watermark shows
-# through the decoder alone (measured 0.344 here; the demo at 240x180 reads 0.34 over its 48
-# cameras, 0.35-0.40 over the held-out ones in results/owner_reading; chance is 0.5), and the raw
-# model reads near chance (measured 0.477).
-MAX_BLIND_VIEW_BER="${MAX_BLIND_VIEW_BER:-0.45}"
+# dB, held-out views (measured 35.73 with the residual + pool 2 decoder and --reading both; the first
+# default, decoder_48.bin and --reading owner, 38.03: at 120x90 the finer band costs more pixels)
+MIN_PSNR_VS_RAW="${MIN_PSNR_VS_RAW:-35}"
+# Blind single views over all cameras, the fraction of bits wrong on average: the default embedding
+# serves the decoder alone too (measured 0.0625 here; the demo at 240x180 reads 0.022 over its 48
+# cameras, results/demo; chance is 0.5), and the raw model reads near chance (measured 0.488).
+MAX_BLIND_VIEW_BER="${MAX_BLIND_VIEW_BER:-0.12}"
 MIN_RAW_VIEW_BER="${MIN_RAW_VIEW_BER:-0.40}"
 # Extra embed options, to see the test fail on a weaker embedding (e.g. --margin 0).
 read -r -a extra <<< "${EMBED_EXTRA_ARGS:-}"
@@ -87,6 +88,7 @@ wm, raw = json.load(open(sys.argv[1])), json.load(open(sys.argv[3]))
 for name, j in (("watermarked", wm), ("raw", raw)):
     print(f"{name} read blind over {j['num_views']} cameras: BER {j['ber']:.2%}, {j['verdict']}, "
           f"one view mean {j['view_ber']['mean']:.2%}")
+assert wm["verdict"] == "watermark present", f"watermarked, blind over all cameras: {wm['verdict']}"
 assert wm["view_ber"]["mean"] <= float(sys.argv[2]), \
     f"watermarked, blind: one view mean {wm['view_ber']['mean']:.4f} > {sys.argv[2]}"
 assert raw["view_ber"]["mean"] >= float(sys.argv[4]), \

@@ -115,29 +115,35 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
   EXPECT_NE(chosen.output.find("; crop:0.1 "), std::string::npos)
       << chosen.output;
 
-  // --reading both: the owner's reading plus the blind term moves the model
-  // elsewhere than the owner's alone (same seed); at weight 0 it is the
-  // owner's run exactly. The blind term's options alone are refused.
+  // --reading both (the default, at blind weight 0.5): the owner's reading
+  // plus the blind term moves the model elsewhere than the owner's alone
+  // (same seed); at weight 0 it is the owner's run exactly. The blind term's
+  // options with another reading are refused.
   const std::string reading_run =
       base +
       " --message hex:a5c3 --iterations 4 --check_every 2 "
       "--check_views 2 --num_threads 1 --output_path ";
-  const auto owner_only =
-      RunCommand(reading_run + std::string(dir / "wm_owner.ply"));
+  const auto owner_only = RunCommand(
+      reading_run + std::string(dir / "wm_owner.ply") + " --reading owner");
+  const auto by_default =
+      RunCommand(reading_run + std::string(dir / "wm_default.ply"));
   const auto both = RunCommand(reading_run + std::string(dir / "wm_both.ply") +
-                               " --reading both --blind_weight 2");
+                               " --reading both --blind_weight 0.5");
   const auto both_zero =
       RunCommand(reading_run + std::string(dir / "wm_both0.ply") +
                  " --reading both --blind_weight 0");
   ASSERT_EQ(owner_only.exit_code, 0) << owner_only.output;
+  ASSERT_EQ(by_default.exit_code, 0) << by_default.output;
   ASSERT_EQ(both.exit_code, 0) << both.output;
   ASSERT_EQ(both_zero.exit_code, 0) << both_zero.output;
   EXPECT_NE(ReadPly(dir / "wm_both.ply").model.sh_dc,
             ReadPly(dir / "wm_owner.ply").model.sh_dc);
+  EXPECT_EQ(ReadPly(dir / "wm_default.ply").model.sh_dc,
+            ReadPly(dir / "wm_both.ply").model.sh_dc);
   EXPECT_EQ(ReadPly(dir / "wm_both0.ply").model.sh_dc,
             ReadPly(dir / "wm_owner.ply").model.sh_dc);
   ExpectOneLineError(RunCommand(reading_run + std::string(dir / "wm_bad.ply") +
-                                " --blind_weight 2"),
+                                " --reading owner --blind_weight 2"),
                      "--reading both");
 
   // Extraction: a verdict (any) is exit 0, with the JSON written.

@@ -11,6 +11,7 @@
 #include <memory>
 #include <random>
 
+#include "gaussian/depth_render.h"
 #include "gaussian/device.h"
 #include "tests/gaussian/rasterizer_test_scenes.h"
 #include "watermark/evaluation.h"
@@ -31,6 +32,9 @@ struct Scene {
   std::unique_ptr<Rasterizer> rasterizer = MakeRasterizer(Device::kCpu);
   CameraRenderer render = [this](const RenderCamera& camera) {
     return RenderClamped(*rasterizer, model, camera, {0.f, 0.f, 0.f});
+  };
+  DepthRenderer depth_map = [this](const RenderCamera& camera) {
+    return RenderDepth(*rasterizer, model, camera);
   };
   Scene() {
     SceneSpec spec;
@@ -158,6 +162,84 @@ TEST(PhotometricRefinement, LeavesTheCameraWhenItCannotCompare) {
               PhotometricOptions().max_move_px);
   }
   EXPECT_TRUE(std::isfinite(noise.rms_after));
+}
+
+// The image-gradient Jacobian against finite differences over renders (the
+// other mode's Jacobian, steps of a quarter pixel) at a start off the truth:
+// each of the 9 columns points the same way and has about the same length.
+TEST(PhotometricRefinement, GradientJacobianAgreesWithRenders) {
+  Scene scene;
+  const double off[9] = {0.6, -0.4, 0.3, -0.5, 0.4, 0.5, 0.8, 0.5, -0.5};
+  const RenderCamera start = MoveCamera(scene.truth, kDepth, off);
+  const std::vector<float> depth_map = scene.depth_map(start);
+  const double x[9] = {0.3, 0.2, -0.1, 0.2, -0.3, 0.1, 0.2, -0.2, 0.1};
+  const std::vector<float> blurred =
+      Blurred(scene.render(MoveCamera(start, kDepth, x)), 1.0);
+  const std::vector<double> jacobian =
+      GradientJacobian(blurred, depth_map, start, kDepth, x, 9);
+  ASSERT_EQ(jacobian.size(), blurred.size() * 9);
+  for (int j = 0; j < 9; ++j) {
+    double y[9];
+    std::copy(x, x + 9, y);
+    y[j] += 0.25;
+    const std::vector<float> moved =
+        Blurred(scene.render(MoveCamera(start, kDepth, y)), 1.0);
+    double dot = 0, fd_norm = 0, g_norm = 0;
+    for (size_t i = 0; i < blurred.size(); ++i) {
+      const double fd = (double(moved[i]) - double(blurred[i])) / 0.25;
+      const double g = jacobian[i * 9 + j];
+      ASSERT_TRUE(std::isfinite(g)) << i;
+      dot += fd * g;
+      fd_norm += fd * fd;
+      g_norm += g * g;
+    }
+    EXPECT_GT(dot / std::sqrt(fd_norm * g_norm), 0.9) << "parameter " << j;
+    EXPECT_NEAR(std::sqrt(g_norm / fd_norm), 1.0, 0.25) << "parameter " << j;
+  }
+}
+
+// The refinement with the gradient Jacobian finds the same cameras as with
+// finite differences (the three cases above) in at most half the renders
+// (measured: 37 against 103 here; 2,265 against 4,758 and more on the
+// demo's viewer screenshots, results/viewers/detect_cost).
+TEST(PhotometricRefinement, GradientJacobianFindsTheCamerasInFewerRenders) {
+  Scene scene;
+  const ImageRGB shot = scene.Screenshot();
+  PhotometricOptions gradient;
+  gradient.depth_map = scene.depth_map;
+  const double off[9] = {1.5, -1.0, 0.8, -1.2, 0.9, 1.0, 0, 0, 0};
+  const RenderCamera start = MoveCamera(scene.truth, kDepth, off);
+  const PhotometricResult by_renders =
+      RefinePhotometrically(shot, {start}, kDepth, scene.render);
+  const PhotometricResult r =
+      RefinePhotometrically(shot, {start}, kDepth, scene.render, gradient);
+  EXPECT_TRUE(r.applied);
+  EXPECT_LT(CameraMotionPx(scene.truth, r.camera, kDepth), 0.15);
+  EXPECT_LE(2 * r.renders, by_renders.renders)
+      << r.renders << " renders against " << by_renders.renders;
+
+  const double far[9] = {40, -25, 10, 30, 20, -15, 0, 0, 0};
+  const double near[9] = {1.2, -0.8, 0.5, -1.0, 0.7, 0.8, 0, 0, 0};
+  const PhotometricResult two =
+      RefinePhotometrically(shot,
+                            {MoveCamera(scene.truth, kDepth, far),
+                             MoveCamera(scene.truth, kDepth, near)},
+                            kDepth, scene.render, gradient);
+  EXPECT_EQ(two.start, 1);
+  EXPECT_LT(CameraMotionPx(scene.truth, two.camera, kDepth), 0.15);
+
+  const double pose_off[9] = {1.0, -0.8, 0, 0.6, 0, 0, 0, 0, 0};
+  const PhotometricResult kept =
+      RefinePhotometrically(shot, {MoveCamera(scene.truth, kDepth, pose_off)},
+                            kDepth, scene.render, gradient);
+  EXPECT_DOUBLE_EQ(kept.camera.fx, scene.truth.fx);
+  EXPECT_LT(CameraMotionPx(scene.truth, kept.camera, kDepth), 0.15);
+  const double zoom_off[9] = {1.0, -0.8, 0, 0.6, 0, 0, 3.0, 2.0, -1.5};
+  const RenderCamera wrong = MoveCamera(scene.truth, kDepth, zoom_off);
+  const PhotometricResult zoomed =
+      RefinePhotometrically(shot, {wrong}, kDepth, scene.render, gradient);
+  EXPECT_TRUE(zoomed.applied);
+  EXPECT_LT(CameraMotionPx(scene.truth, zoomed.camera, kDepth), 0.3);
 }
 
 }  // namespace
