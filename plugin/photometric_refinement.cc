@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -66,11 +67,13 @@ class RenderAlignmentCost : public ceres::CostFunction {
     double x[kParameters] = {0};
     std::copy(parameters[0], parameters[0] + free_, x);
     const std::vector<float> blurred = BlurredRender(x);
+    // A render of another size cannot be compared: the step is refused.
+    if (blurred.size() != target_.size()) return false;
     for (size_t i = 0; i < target_.size(); ++i) {
       residuals[i] = double(blurred[i]) - double(target_[i]);
     }
     if (jacobians == nullptr || jacobians[0] == nullptr) return true;
-    if (!depth_map_.empty()) {
+    if (depth_map_.size() * 3 == target_.size()) {
       const std::vector<double> jacobian =
           GradientJacobian(blurred, depth_map_, camera_, depth_, x, free_);
       std::copy(jacobian.begin(), jacobian.end(), jacobians[0]);
@@ -91,9 +94,13 @@ class RenderAlignmentCost : public ceres::CostFunction {
     return true;
   }
 
-  // x: all 9 parameters.
+  // x: all 9 parameters. A render of another size reads as no fit at all.
   void Residuals(const double* x, double* out) const {
     const std::vector<float> blurred = BlurredRender(x);
+    if (blurred.size() != target_.size()) {
+      std::fill(out, out + target_.size(), 1.0);
+      return;
+    }
     for (size_t i = 0; i < target_.size(); ++i) {
       out[i] = double(blurred[i]) - double(target_[i]);
     }
@@ -142,6 +149,13 @@ std::vector<double> GradientJacobian(const std::vector<float>& blurred,
                                      const RenderCamera& camera, double depth,
                                      const double* x, int free) {
   const int w = camera.width, h = camera.height;
+  const size_t pixels = size_t(w) * h;
+  if (blurred.size() != 3 * pixels || depth_map.size() != pixels ||
+      !(depth > 0) || !std::isfinite(depth)) {
+    throw std::invalid_argument(
+        "GradientJacobian: the render must be H x W x 3 and the depth map H "
+        "x W of the camera, with a positive typical depth");
+  }
   const RenderCamera at = MoveCamera(camera, depth, x);
   // A pixel's image motion under parameter j: where its point (at its depth)
   // projects once the camera takes a small step in j, in double.
@@ -161,8 +175,10 @@ std::vector<double> GradientJacobian(const std::vector<float>& blurred,
       const size_t p = size_t(v) * w + u;
       double z = depth_map[p];
       if (!(z > 0) || !std::isfinite(z)) z = depth;
-      const Eigen::Vector3d in_at((u - at.cx) / at.fx * z,
-                                  (v - at.cy) / at.fy * z, z);
+      // The pixel's centre (gaussian/camera.h: col + 0.5, row + 0.5).
+      const double pu = u + 0.5, pv = v + 0.5;
+      const Eigen::Vector3d in_at((pu - at.cx) / at.fx * z,
+                                  (pv - at.cy) / at.fy * z, z);
       const Eigen::Vector3d world = at.R.transpose() * (in_at - at.t);
       double gx[3], gy[3];
       for (int c = 0; c < 3; ++c) {
@@ -177,8 +193,8 @@ std::vector<double> GradientJacobian(const std::vector<float>& blurred,
         const RenderCamera& s = stepped[j];
         const Eigen::Vector3d in_s = s.R * world + s.t;
         if (!(in_s.z() > 0)) continue;
-        const double du = (s.fx * in_s.x() / in_s.z() + s.cx - u) / kStep;
-        const double dv = (s.fy * in_s.y() / in_s.z() + s.cy - v) / kStep;
+        const double du = (s.fx * in_s.x() / in_s.z() + s.cx - pu) / kStep;
+        const double dv = (s.fy * in_s.y() / in_s.z() + s.cy - pv) / kStep;
         // The render moved by (du, dv): its value at a pixel is what was
         // (du, dv) before it.
         for (int c = 0; c < 3; ++c) {

@@ -30,7 +30,8 @@ struct PhotometricOptions {
   // Gaussian blur (pixels) of both images before comparing: widens the basin
   // and keeps the watermark and JPEG noise out of the fit.
   double blur_sigma = 1.0;
-  // Finite-difference step, in pixels of motion at the image.
+  // Finite-difference step (without depth_map), pixels of motion at the
+  // image.
   double step_px = 0.25;
   int max_iterations = 10;
   // A move larger than this from the start it left (pixels at a corner, at
@@ -44,8 +45,10 @@ struct PhotometricOptions {
   bool refine_intrinsics = true;
   double intrinsics_gain = 0.03;
   // Given: the Jacobian from the image gradient and the depth (rendered once
-  // per start); empty: finite differences over renders, 7-10 times the
-  // renders (docs/history.md, "detect's cost").
+  // per start, read at the moved camera as it was: the moves are pixels);
+  // empty: finite differences over renders, 7-10 renders a Jacobian instead
+  // of one (about half to a third of the renders over a whole refinement:
+  // docs/history.md, "detect's cost").
   DepthRenderer depth_map;
 };
 
@@ -88,8 +91,10 @@ std::vector<float> Blurred(const ImageRGB& image, double sigma);
 // The Jacobian of the blurred render at MoveCamera(camera, depth, x) with
 // respect to the first `free` entries of x, from the image gradient of
 // `blurred` (H x W x 3, rendered there) and the raw model's z-depth at
-// `camera` (H x W; uncovered pixels take `depth`): row-major, one row per
-// value of `blurred`. Exposed for the test against finite differences.
+// `camera` (H x W; uncovered pixels take `depth`; read at the moved camera as
+// it was, which only the translation's columns feel): row-major, one row per
+// value of `blurred`. Throws std::invalid_argument on other sizes. Exposed
+// for the test against finite differences.
 std::vector<double> GradientJacobian(const std::vector<float>& blurred,
                                      const std::vector<float>& depth_map,
                                      const RenderCamera& camera, double depth,

@@ -2,7 +2,8 @@
 # The demo at a quarter of its resolution (120x90), as a test of the watermark itself with the
 # shipped decoder: train, embed with nothing but the required options (the defaults are the
 # product), attack the file, then read it back as the owner does (extract --raw_path: each view's
-# logits minus the raw model's, the reading the default embedding optimises). Asserts per single
+# logits minus the raw model's) and blind (the decoder alone): the default embedding optimises both
+# readings. Asserts per single
 # view, not only in aggregate:
 #  - the raw model reads "absent" over all cameras blind, and a second raw model trained alone (another
 #    seed: an unmarked model of the same scene, what an honest third party could hold) reads "absent"

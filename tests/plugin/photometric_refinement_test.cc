@@ -10,6 +10,7 @@
 #include <cmath>
 #include <memory>
 #include <random>
+#include <stdexcept>
 
 #include "gaussian/depth_render.h"
 #include "gaussian/device.h"
@@ -213,8 +214,10 @@ TEST(PhotometricRefinement, GradientJacobianFindsTheCamerasInFewerRenders) {
       RefinePhotometrically(shot, {start}, kDepth, scene.render);
   const PhotometricResult r =
       RefinePhotometrically(shot, {start}, kDepth, scene.render, gradient);
+  EXPECT_TRUE(by_renders.applied);
   EXPECT_TRUE(r.applied);
   EXPECT_LT(CameraMotionPx(scene.truth, r.camera, kDepth), 0.15);
+  EXPECT_LT(CameraMotionPx(by_renders.camera, r.camera, kDepth), 0.2);
   EXPECT_LE(2 * r.renders, by_renders.renders)
       << r.renders << " renders against " << by_renders.renders;
 
@@ -225,6 +228,7 @@ TEST(PhotometricRefinement, GradientJacobianFindsTheCamerasInFewerRenders) {
                             {MoveCamera(scene.truth, kDepth, far),
                              MoveCamera(scene.truth, kDepth, near)},
                             kDepth, scene.render, gradient);
+  EXPECT_TRUE(two.applied);
   EXPECT_EQ(two.start, 1);
   EXPECT_LT(CameraMotionPx(scene.truth, two.camera, kDepth), 0.15);
 
@@ -233,13 +237,26 @@ TEST(PhotometricRefinement, GradientJacobianFindsTheCamerasInFewerRenders) {
       RefinePhotometrically(shot, {MoveCamera(scene.truth, kDepth, pose_off)},
                             kDepth, scene.render, gradient);
   EXPECT_DOUBLE_EQ(kept.camera.fx, scene.truth.fx);
+  EXPECT_DOUBLE_EQ(kept.camera.cx, scene.truth.cx);
   EXPECT_LT(CameraMotionPx(scene.truth, kept.camera, kDepth), 0.15);
   const double zoom_off[9] = {1.0, -0.8, 0, 0.6, 0, 0, 3.0, 2.0, -1.5};
   const RenderCamera wrong = MoveCamera(scene.truth, kDepth, zoom_off);
   const PhotometricResult zoomed =
       RefinePhotometrically(shot, {wrong}, kDepth, scene.render, gradient);
   EXPECT_TRUE(zoomed.applied);
+  EXPECT_NE(zoomed.camera.fx, wrong.fx);
   EXPECT_LT(CameraMotionPx(scene.truth, zoomed.camera, kDepth), 0.3);
+  // A depth map of another size is not this camera's: finite differences.
+  PhotometricOptions wrong_size;
+  wrong_size.depth_map = [](const RenderCamera&) {
+    return std::vector<float>(10, 4.f);
+  };
+  const PhotometricResult fallback =
+      RefinePhotometrically(shot, {start}, kDepth, scene.render, wrong_size);
+  EXPECT_EQ(fallback.renders, by_renders.renders + 2);  // + the 2 depth maps
+  EXPECT_THROW(GradientJacobian(std::vector<float>(30), std::vector<float>(9),
+                                scene.truth, kDepth, off, 9),
+               std::invalid_argument);
 }
 
 }  // namespace

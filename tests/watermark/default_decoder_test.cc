@@ -103,7 +103,7 @@ TEST_P(DefaultDecoderTest, SteerableAndBalancedOnHeldOutPhotos) {
   // Bit positions stuck on these photos: reading 1 on under 10% or over 90%
   // of the crops. (Over crops of only 8 photos a bit's fraction moves in
   // steps of about 1/8, by which photos lean which way; decoder_48.bin gives
-  // 0.12-0.87, none stuck. The residual decoder leans harder on a photo's
+  // 0.115-0.885, none stuck. The residual decoder leans harder on a photo's
   // fine texture, |mean logit| 5.0 per bit against 2.5: two of its bits
   // read 1 on under 10% of the crops of these 8 photos (bit 43 never: mean
   // logit -14.4, spread 10.5); over 8,048 unmarked views the false-positive
