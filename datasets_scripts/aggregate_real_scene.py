@@ -126,6 +126,16 @@ def main(out):
             lines.append(f"| {label} | {reading} | " + " | ".join(row) + " |")
     lines += ["", f"'Present' alone: at most {present_threshold(48)} of 48 bits wrong (p <= 1e-6 "
               "under a key, binomial).", ""]
+    together = []
+    for label, _, _, _ in single:
+        path = os.path.join(runs_dir, label, "all_blind.json")
+        if os.path.isfile(path):
+            j = load(path)
+            together.append(f"| {label} | {j['num_views']} | {j['bit_errors']} of {j['num_bits']} | "
+                            f"{j['verdict']} |")
+    if together:
+        lines += ["## Every camera together, read blind (extract without the raw model)", "",
+                  "| run | cameras | bits wrong | verdict |", "|---|---|---|---|", *together, ""]
     times_path = os.path.join(out, "times.txt")
     if os.path.exists(times_path):
         lines += ["## Time per stage (2 cores)", "", "| stage | seconds |", "|---|---|"]
