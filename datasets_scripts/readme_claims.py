@@ -569,12 +569,18 @@ CLAIMS = [
           cell(F2B, ("both_seed1", "owner"), FROM_RAW), cell(F2B, ("both_seed2", "owner"), FROM_RAW),
           cell(F2B, ("both_seed0", "owner"), RAW_PSNR, 0), cell(F2B, ("both_seed0", "owner"), RAW_PSNR, 1),
           cell(H2B, ("both_seed0", "owner"), RAW_PSNR, 0), cell(H2B, ("both_seed0", "owner"), RAW_PSNR, 1)),
+    Claim("; horns' seed 1: blind one held-out view {}% (p90 {}), one free viewpoint {}%, as the owner at most {}% "
+          "per image, {} dB from the raw renders |",
+          cell(H2B, ("both_seed1", "blind"), "held-out mean"), cell(H2B, ("both_seed1", "blind"), "held-out mean", 1),
+          cell(H2B, ("both_seed1", "blind"), "free mean"), highest(*table1(H2B, ("both_seed1",))),
+          cell(H2B, ("both_seed1", "owner"), FROM_RAW)),
     Claim("; fern's seeds 1-2: blind one held-out view {} / {}% (p90 {} / {}), one free viewpoint {} / {}%, as the owner "
-          "at most {}% per image (Table 1) | fern **{}**, horns **{} dB** (fern's seeds 1-2: {} / {}) |",
+          "at most {}% per image (Table 1);",
           cell(F2B, ("both_seed1", "blind"), "held-out mean"), cell(F2B, ("both_seed2", "blind"), "held-out mean"),
           cell(F2B, ("both_seed1", "blind"), "held-out mean", 1), cell(F2B, ("both_seed2", "blind"), "held-out mean", 1),
           cell(F2B, ("both_seed1", "blind"), "free mean"), cell(F2B, ("both_seed2", "blind"), "free mean"),
-          highest(*table1(F2B, ("both_seed1", "both_seed2"))),
+          highest(*table1(F2B, ("both_seed1", "both_seed2")))),
+    Claim("| fern **{}**, horns **{} dB** (fern's seeds 1-2: {} / {}) |",
           cell(F2B, ("both_seed0", "owner"), FROM_RAW), cell(H2B, ("both_seed0", "owner"), FROM_RAW),
           cell(F2B, ("both_seed1", "owner"), FROM_RAW), cell(F2B, ("both_seed2", "owner"), FROM_RAW)),
     Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; each viewer's 6 together "
