@@ -68,10 +68,7 @@ class RenderAlignmentCost : public ceres::CostFunction {
     std::copy(parameters[0], parameters[0] + free_, x);
     const std::vector<float> blurred = BlurredRender(x);
     // A render of another size cannot be compared: the step is refused.
-    if (blurred.size() != target_.size()) return false;
-    for (size_t i = 0; i < target_.size(); ++i) {
-      residuals[i] = double(blurred[i]) - double(target_[i]);
-    }
+    if (!Difference(blurred, residuals)) return false;
     if (jacobians == nullptr || jacobians[0] == nullptr) return true;
     if (depth_map_.size() * 3 == target_.size()) {
       const std::vector<double> jacobian =
@@ -96,17 +93,21 @@ class RenderAlignmentCost : public ceres::CostFunction {
 
   // x: all 9 parameters. A render of another size reads as no fit at all.
   void Residuals(const double* x, double* out) const {
-    const std::vector<float> blurred = BlurredRender(x);
-    if (blurred.size() != target_.size()) {
+    if (!Difference(BlurredRender(x), out)) {
       std::fill(out, out + target_.size(), 1.0);
-      return;
-    }
-    for (size_t i = 0; i < target_.size(); ++i) {
-      out[i] = double(blurred[i]) - double(target_[i]);
     }
   }
 
  private:
+  // out = blurred - target; false (out untouched) when the sizes differ.
+  bool Difference(const std::vector<float>& blurred, double* out) const {
+    if (blurred.size() != target_.size()) return false;
+    for (size_t i = 0; i < target_.size(); ++i) {
+      out[i] = double(blurred[i]) - double(target_[i]);
+    }
+    return true;
+  }
+
   std::vector<float> BlurredRender(const double* x) const {
     const ImageRGB rendered = render_(MoveCamera(camera_, depth_, x));
     ++*renders_;
