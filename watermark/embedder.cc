@@ -7,6 +7,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <stdexcept>
 
 #include "gaussian/checkpoint.h"
 #include "gaussian/projection.h"
@@ -148,6 +149,17 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
         "embed: a blind term goes beside the owner's reading (--reading "
         "both)");
   }
+  try {
+    CheckFidelityBudget(options_.budget);
+  } catch (const std::invalid_argument& e) {
+    Fail(std::string("embed: ") + e.what());
+  }
+  if (options_.budget.enabled() && !(options_.blind.weight > 0)) {
+    Fail(
+        "embed: a PSNR target steers the blind term: give --reading both "
+        "with --blind_weight > 0");
+  }
+  blind_ = options_.blind;
   if (!(options_.mse_weight >= 0)) Fail("embed: mse_weight must be >= 0");
   if (!(options_.masking >= 0)) Fail("embed: masking must be >= 0");
   if (options_.masking > 0 && options_.mse_weight <= 0) {
@@ -277,6 +289,10 @@ std::string Embedder::RunSignature() const {
   if (options_.blind.weight > 0) {
     j["blind_weight"] = options_.blind.weight;
     j["blind_margin"] = options_.blind.margin;
+  }
+  if (options_.budget.enabled()) {
+    j["target_psnr"] = {options_.budget.target_db,
+                        options_.budget.db_per_doubling, options_.check_every};
   }
   if (options_.adam.feature_lr != AdamOptions().feature_lr) {
     j["feature_lr"] = options_.adam.feature_lr;
@@ -520,10 +536,10 @@ DensityEvent Embedder::HostIteration(int64_t it, const IterationPlan& plan,
   } else if (plan.jpeg) {
     stats->bce = JpegMessageLoss(plan, stats);
   } else {
-    stats->bce = AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
-                                options_.gamma, &grad_image_,
-                                &stats->bit_errors, options_.margin,
-                                plan.reference_logits.get(), options_.blind);
+    stats->bce =
+        AddMessageLoss(*decoder_, render_, plan.decoder_crop, targets_,
+                       options_.gamma, &grad_image_, &stats->bit_errors,
+                       options_.margin, plan.reference_logits.get(), blind_);
   }
   stats->total = stats->image.total + options_.gamma * stats->bce;
   auto t4 = Clock::now();
@@ -567,7 +583,7 @@ double Embedder::JpegMessageLoss(const IterationPlan& plan,
   return AddJpegMessageLoss(*decoder_, render_, plan.decoder_crop,
                             options_.jpeg_quality, targets_, options_.gamma,
                             &grad_image_, &stats->bit_errors, options_.margin,
-                            plan.reference_logits.get(), options_.blind);
+                            plan.reference_logits.get(), blind_);
 }
 
 double Embedder::JitteredMessageLoss(const IterationPlan& plan,
@@ -693,10 +709,27 @@ const std::vector<std::vector<float>>& Embedder::CheckReference(
   return check_reference_;
 }
 
+const std::vector<std::shared_ptr<const ImageRGB>>& Embedder::CheckInputs(
+    const std::vector<size_t>& views) {
+  // The input model is fixed: one set of renders per view set.
+  if (input_model_.size() == 0 ||
+      (check_inputs_views_ == views && !check_inputs_.empty())) {
+    return check_inputs_;
+  }
+  check_inputs_.clear();
+  check_inputs_views_ = views;
+  for (const RenderCamera& camera : CheckCameras(views)) {
+    check_inputs_.push_back(RenderInput(camera));
+  }
+  return check_inputs_;
+}
+
 std::vector<std::vector<float>> Embedder::ReadCameras(
     const GaussianModel* model, const std::vector<RenderCamera>& cameras,
     const std::vector<std::vector<float>>& reference,
-    const std::vector<std::shared_ptr<const ImageRGB>>* truths, double* psnr) {
+    const std::vector<std::shared_ptr<const ImageRGB>>* truths, double* psnr,
+    const std::vector<std::shared_ptr<const ImageRGB>>* inputs,
+    double* psnr_vs_input) {
   std::vector<std::vector<float>> logits(cameras.size());
   ImageRGB image;
   RenderOptions render_options;
@@ -714,6 +747,9 @@ std::vector<std::vector<float>> Embedder::ReadCameras(
     }
     if (truths && k < truths->size()) {
       *psnr += Psnr(image, *(*truths)[k]) / truths->size();
+    }
+    if (inputs && k < inputs->size()) {
+      *psnr_vs_input += Psnr(image, *(*inputs)[k]) / inputs->size();
     }
   }
   return logits;
@@ -756,8 +792,9 @@ CheckResult Embedder::Check(const std::vector<size_t>& views) {
   CheckResult result;
   std::vector<std::shared_ptr<const ImageRGB>> truths;
   for (size_t view : views) truths.push_back(views_.Image(view));
-  result.logits = ReadCameras(nullptr, CheckCameras(views),
-                              CheckReference(views), &truths, &result.psnr);
+  result.logits =
+      ReadCameras(nullptr, CheckCameras(views), CheckReference(views), &truths,
+                  &result.psnr, &CheckInputs(views), &result.psnr_vs_input);
   const size_t num_free = result.logits.size() - views.size();
   std::vector<double> sum_logits(message_.size(), 0.0);
   for (size_t k = 0; k < result.logits.size(); ++k) {
@@ -804,6 +841,8 @@ bool Embedder::Run() {
           last_check.mean_ber == 0 && last_check.free_mean_ber == 0
               ? zero_ber_checks_ + 1
               : 0;
+      blind_.weight = NextBlindWeight(options_.budget, blind_.weight,
+                                      last_check.psnr_vs_input);
       read_past_margin = options_.stop_margin > 0 &&
                          last_check.weakest_margin >= options_.stop_margin;
       // A layer turned on now has iterations to come before any stop.
@@ -841,6 +880,11 @@ bool Embedder::Run() {
                         100 * last_check.free_mean_ber);
         }
         line += status;
+        if (options_.budget.enabled()) {
+          std::snprintf(status, sizeof(status), "  vs input %.2f blind w %.3g",
+                        last_check.psnr_vs_input, blind_.weight);
+          line += status;
+        }
       }
       if (pool_) {
         std::snprintf(status, sizeof(status), "  hard %zu/%zu",
@@ -892,6 +936,7 @@ void Embedder::SaveCheckpoint(const std::string& path) const {
   extra["rng"] = rng_text.str();
   extra["origin"] = origin_;
   extra["zero_ber_checks"] = zero_ber_checks_;
+  extra["blind_weight"] = blind_.weight;
   if (pool_) extra["pool_deficits"] = pool_->deficits();
   if (choice_) extra["distortions_since"] = choice_->State();
   c.rng_state = extra.dump();
@@ -915,9 +960,11 @@ void Embedder::Resume(const std::string& path) {
   }
   std::vector<int64_t> origin;
   int zero_ber_checks = 0;
+  double blind_weight = options_.blind.weight;
   try {
     origin = extra["origin"].get<std::vector<int64_t>>();
     zero_ber_checks = extra.value("zero_ber_checks", 0);
+    blind_weight = extra.value("blind_weight", blind_weight);
   } catch (const nlohmann::json::exception&) {
     FailAt(path, "checkpoint embed state has fields of the wrong type");
   }
@@ -941,6 +988,10 @@ void Embedder::Resume(const std::string& path) {
   rng_in >> rng_;
   origin_ = std::move(origin);
   zero_ber_checks_ = zero_ber_checks;
+  if (!std::isfinite(blind_weight) || blind_weight < 0) {
+    FailAt(path, "checkpoint's blind weight is not a weight");
+  }
+  blind_.weight = blind_weight;
   if (pool_ && extra.contains("pool_deficits")) {
     std::vector<double> deficits;
     try {

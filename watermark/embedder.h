@@ -26,6 +26,7 @@
 #include "watermark/decoder.h"
 #include "watermark/device_embedding_step.h"
 #include "watermark/distortion_choice.h"
+#include "watermark/fidelity_budget.h"
 #include "watermark/message.h"
 #include "watermark/message_loss.h"
 #include "watermark/view_jitter.h"
@@ -100,6 +101,9 @@ struct EmbedOptions {
   // term also pushes the logits themselves past blind.margin, so that a
   // reader without the raw model finds the message too (--reading both).
   BlindTerm blind;
+  // target_db > 0: blind.weight is steered at every check towards renders
+  // that sit target_db from the input model's (fidelity_budget.h).
+  FidelityBudget budget;
   // The image term's target on training cameras: the input model's render
   // there instead of the photo (free viewpoints always use the render), so
   // fine-tuning spends its changes on the message, not on refitting photos.
@@ -187,6 +191,9 @@ struct CheckResult {
   double aggregate_ber = 0;
   // Mean PSNR of the renders against ground truth.
   double psnr = 0;
+  // Mean PSNR against the input model's renders, over the check views and
+  // the free viewpoints (what --target_psnr steers).
+  double psnr_vs_input = 0;
   // The smallest signed logit (in the reading the embedding optimises) over
   // every bit of every check view and free viewpoint: > 0 when all read.
   double weakest_margin = std::numeric_limits<double>::infinity();
@@ -224,6 +231,9 @@ class Embedder {
   // For each Gaussian now, the index of the input Gaussian it descends from.
   const std::vector<int64_t>& origin() const { return origin_; }
   int64_t iteration() const { return iteration_; }
+  // The blind term's weight now (options.blind.weight unless a budget
+  // steers it).
+  double blind_weight() const { return blind_.weight; }
   // The per-scene choice of layers (null unless choose_distortions).
   const DistortionChoice* distortion_choice() const { return choice_.get(); }
   // Sum of per-stage seconds over all iterations so far.
@@ -292,7 +302,13 @@ class Embedder {
       const GaussianModel* model, const std::vector<RenderCamera>& cameras,
       const std::vector<std::vector<float>>& reference,
       const std::vector<std::shared_ptr<const ImageRGB>>* truths = nullptr,
-      double* psnr = nullptr);
+      double* psnr = nullptr,
+      const std::vector<std::shared_ptr<const ImageRGB>>* inputs = nullptr,
+      double* psnr_vs_input = nullptr);
+  // The input model's renders at CheckCameras(views) (empty without an
+  // input model); kept for the last view set asked.
+  const std::vector<std::shared_ptr<const ImageRGB>>& CheckInputs(
+      const std::vector<size_t>& views);
   // Reviews each candidate layer on the check cameras (choose_distortions),
   // `check` being the plain reading there now; true when one was turned on.
   bool ReviewDistortions(const CheckResult& check);
@@ -341,6 +357,11 @@ class Embedder {
   // CheckReference's cache and the views it holds.
   std::vector<std::vector<float>> check_reference_;
   std::vector<size_t> check_reference_views_;
+  // CheckInputs' cache and the views it holds.
+  std::vector<std::shared_ptr<const ImageRGB>> check_inputs_;
+  std::vector<size_t> check_inputs_views_;
+  // The blind term as the loss uses it (its weight steered by the budget).
+  BlindTerm blind_;
   // Hard-viewpoint replay (null when hard_views is 0), with its targets.
   std::unique_ptr<ViewpointPool> pool_;
   std::vector<std::shared_ptr<const ImageRGB>> pool_targets_;

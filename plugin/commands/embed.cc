@@ -76,6 +76,9 @@ struct EmbedArgs {
   // (docs/decoder_design.md, "one file for both readers").
   std::string reading = "both";
   double blind_weight = 0.5, blind_margin = 0;
+  // > 0: the blind weight steered so the renders sit this far (dB) from the
+  // input model's at the check cameras (fidelity_budget.h).
+  double target_psnr = 0;
   double mse_weight = 50;
   double masking = 0;
   // Multiplies every optimiser rate: Adam moves each parameter by about its
@@ -367,6 +370,12 @@ int RunEmbed(int argc, char** argv) {
   parser.Add("blind_margin", &a.blind_margin,
              "--reading both: the margin the blind term pushes the logits "
              "past (0: their sign; a reader aggregating views needs little)");
+  parser.Add("target_psnr", &a.target_psnr,
+             "--reading both: > 0 steers --blind_weight at every check (x2 "
+             "or /2 at most) so that the renders sit this many dB from the "
+             "input model's at the check views and free viewpoints: a scene "
+             "whose message costs little spends the headroom on the blind "
+             "reading; 0: the weight stays as given");
   parser.Add("mse_weight", &a.mse_weight,
              "> 0: image loss = this x MSE (PSNR's measure) instead of L1 + "
              "D-SSIM");
@@ -474,8 +483,12 @@ int RunEmbed(int argc, char** argv) {
   if (a.reading == "both") {
     options.blind.weight = a.blind_weight;
     options.blind.margin = a.blind_margin;
-  } else if (parser.Given("blind_weight") || parser.Given("blind_margin")) {
-    Fail("--blind_weight and --blind_margin go with --reading both");
+    options.budget.target_db = a.target_psnr;
+  } else if (parser.Given("blind_weight") || parser.Given("blind_margin") ||
+             parser.Given("target_psnr")) {
+    Fail(
+        "--blind_weight, --blind_margin and --target_psnr go with --reading "
+        "both");
   }
   options.mse_weight = a.mse_weight;
   options.masking = a.masking;
@@ -583,6 +596,15 @@ int RunEmbed(int argc, char** argv) {
       "vs raw %.2f dB\n",
       options.check_views.size(), 100 * before.mean_ber, 100 * after.mean_ber,
       100 * after.aggregate_ber, before.psnr, after.psnr, psnr_vs_raw);
+  if (options.budget.enabled()) {
+    std::printf(
+        "embed: blind weight %.3g -> %.3g (--target_psnr %.2f dB; the last "
+        "check read %.2f dB from the input's renders at %zu views and %zu "
+        "free viewpoints)\n",
+        options.blind.weight, embedder.blind_weight(), options.budget.target_db,
+        after.psnr_vs_input, options.check_views.size(),
+        options.check_free_views.size());
+  }
   if (const DistortionChoice* choice = embedder.distortion_choice()) {
     std::printf("embed: distortion layers %s\n",
                 choice->Summary(embedder.iteration()).c_str());

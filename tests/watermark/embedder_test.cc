@@ -530,6 +530,69 @@ TEST(Embedder, OwnerReadingRefusesDecoderJitter) {
                Error);
 }
 
+// --target_psnr: each check's PSNR against the input model's renders (the
+// check views, computed here directly) steers the blind weight, x2 a check
+// while the renders sit far above the target and /2 while far below; the
+// steered weight reaches the loss and survives a checkpoint.
+TEST(Embedder, TargetPsnrSteersTheBlindWeightByTheChecksDistanceFromTheInput) {
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  Decoder decoder(&net);
+  const Bits message = RandomBits(16, 9);
+  EmbedOptions o = ShortEmbedOptions();
+  o.owner_reading = true;
+  o.blind = {0.5, 0};
+  o.iterations = 20;
+  o.check_every = 5;
+  o.patience = 0;
+  o.check_views = s.train;
+  const int checks = int(o.iterations / o.check_every);
+  auto run = [&](double target_db) {
+    EmbedOptions steered = o;
+    steered.budget.target_db = target_db;
+    auto e = std::make_unique<Embedder>(steered, s.views, s.train, s.model, 3.0,
+                                        &decoder, message, MakeCpuRasterizer());
+    e->Run();
+    return e;
+  };
+  const auto low = run(1), high = run(99);
+  EXPECT_DOUBLE_EQ(low->blind_weight(), 0.5 * std::exp2(checks));
+  EXPECT_DOUBLE_EQ(high->blind_weight(), 0.5 / std::exp2(checks));
+  // The check's PSNR is the input's renders against the current ones.
+  const CheckResult check = low->Check(o.check_views);
+  auto rasterizer = MakeCpuRasterizer();
+  double direct = 0;
+  for (size_t v : o.check_views) {
+    ImageRGB a, b;
+    rasterizer->Forward(low->model(), s.views.Camera(v), {}, &a, nullptr);
+    rasterizer->Forward(s.model, s.views.Camera(v), {}, &b, nullptr);
+    for (float& x : b.data) x = std::clamp(x, 0.f, 1.f);
+    direct += Psnr(a, b) / o.check_views.size();
+  }
+  EXPECT_NEAR(check.psnr_vs_input, direct, 1e-9);
+  EXPECT_GT(direct, 1 + 2.0) << "the low target must sit a doubling below";
+  EXPECT_LT(direct, 99 - 2.0);
+  // The weight reaches the loss: the two runs moved the model apart.
+  EXPECT_NE(low->model().sh_dc, high->model().sh_dc);
+  // A checkpoint keeps the steered weight.
+  const std::string path = ::testing::TempDir() + "embedder_budget.ckpt";
+  low->SaveCheckpoint(path);
+  EmbedOptions steered = o;
+  steered.budget.target_db = 1;
+  Embedder resumed(steered, s.views, s.train, s.model, 3.0, &decoder, message,
+                   MakeCpuRasterizer());
+  EXPECT_DOUBLE_EQ(resumed.blind_weight(), 0.5);
+  resumed.Resume(path);
+  EXPECT_DOUBLE_EQ(resumed.blind_weight(), low->blind_weight());
+  std::remove(path.c_str());
+  // A budget needs a blind term to steer.
+  steered.blind.weight = 0;
+  EXPECT_THROW(Embedder(steered, s.views, s.train, s.model, 3.0, &decoder,
+                        message, MakeCpuRasterizer()),
+               Error);
+}
+
 TEST(Embedder, EmbeddingLowersTheBitErrorRate) {
   Scene s = MakeScene(2, 32, 24);
   HiddenModel net(TinyDecoderConfig(16), false, 5);
