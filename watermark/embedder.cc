@@ -16,6 +16,7 @@
 #include "gaussian/util/progress.h"
 #include "watermark/backend.h"
 #include "watermark/extractor.h"
+#include "watermark/image_attacks.h"
 #include "watermark/texture_masking.h"
 
 namespace watergs {
@@ -386,21 +387,30 @@ std::shared_ptr<const std::vector<float>> Embedder::ReferenceLogits(
   // The decoded patch in frame pixels: a cropped render is all crop.
   const PixelRect patch =
       plan.render_options.rect.empty() ? plan.decoder_crop : plan.crop;
-  if (plan.pool_view >= 0 && patch.empty()) {
+  if (plan.pool_view >= 0 && patch.empty() && !plan.jpeg) {
     return PoolReferenceLogits(plan.pool_view);
   }
+  // Through JPEG the reader's reference goes through the same JPEG (detect
+  // compresses the raw render as the suspect image was): so does this one.
+  auto& cache = plan.jpeg ? jpeg_reference_logits_ : reference_logits_;
   const bool cacheable = !plan.free_view && patch.empty();
   if (cacheable) {
-    if (reference_logits_.empty()) reference_logits_.resize(views_.NumViews());
-    if (reference_logits_[plan.view]) return reference_logits_[plan.view];
+    if (cache.empty()) cache.resize(views_.NumViews());
+    if (cache[plan.view]) return cache[plan.view];
   }
   const std::shared_ptr<const ImageRGB> image =
       plan.free_view ? plan.truth : InputRender(plan.view);
-  ImageRGB cropped;
-  if (!patch.empty()) CropImage(*image, patch, &cropped);
+  ImageRGB region;
+  if (!patch.empty()) CropImage(*image, patch, &region);
+  if (plan.jpeg) {
+    ImageAttackSpec jpeg;
+    jpeg.kind = ImageAttackKind::kJpeg;
+    jpeg.value = options_.jpeg_quality;
+    region = ApplyImageAttack(jpeg, patch.empty() ? *image : region);
+  }
   auto logits = std::make_shared<const std::vector<float>>(
-      decoder_->Logits(patch.empty() ? *image : cropped));
-  if (cacheable) reference_logits_[plan.view] = logits;
+      decoder_->Logits(patch.empty() && !plan.jpeg ? *image : region));
+  if (cacheable) cache[plan.view] = logits;
   return logits;
 }
 

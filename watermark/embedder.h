@@ -354,6 +354,8 @@ class Embedder {
   GaussianModel input_model_;
   std::vector<std::shared_ptr<const ImageRGB>> input_renders_;
   std::vector<std::shared_ptr<const std::vector<float>>> reference_logits_;
+  // The same through the JPEG layer's round trip (jpeg_quality).
+  std::vector<std::shared_ptr<const std::vector<float>>> jpeg_reference_logits_;
   // CheckReference's cache and the views it holds.
   std::vector<std::vector<float>> check_reference_;
   std::vector<size_t> check_reference_views_;

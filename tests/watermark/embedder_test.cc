@@ -593,6 +593,31 @@ TEST(Embedder, TargetPsnrSteersTheBlindWeightByTheChecksDistanceFromTheInput) {
                Error);
 }
 
+// Through the JPEG layer the owner's reference is the input's render through
+// the same JPEG, as detect reads a compressed suspect image: before any step
+// the model is the input, so every difference is exactly 0 and the BCE of
+// each bit is that of a zero logit moved by the margin.
+TEST(Embedder, JpegLayerComparesWithTheInputThroughTheSameJpeg) {
+  Scene s = MakeScene(2, 32, 24);
+  HiddenModel net(TinyDecoderConfig(16), false, 5);
+  MakeResponsive(&net, 1000.f, s.views);
+  Decoder decoder(&net);
+  EmbedOptions o = ShortEmbedOptions();
+  o.owner_reading = true;
+  o.margin = 0.5;
+  o.distortions = ParseDistortionList("identity");
+  o.jpeg_quality = 50;
+  o.jpeg_fraction = 1;
+  for (double free_fraction : {0.0, 1.0}) {
+    o.free_view_fraction = free_fraction;
+    Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder,
+                      RandomBits(16, 9), MakeCpuRasterizer());
+    const EmbedStepStats stats = embedder.Step();
+    EXPECT_NEAR(stats.bce, std::log1p(std::exp(o.margin)), 1e-6)
+        << "free-view fraction " << free_fraction;
+  }
+}
+
 TEST(Embedder, EmbeddingLowersTheBitErrorRate) {
   Scene s = MakeScene(2, 32, 24);
   HiddenModel net(TinyDecoderConfig(16), false, 5);
