@@ -371,11 +371,12 @@ int RunEmbed(int argc, char** argv) {
              "--reading both: the margin the blind term pushes the logits "
              "past (0: their sign; a reader aggregating views needs little)");
   parser.Add("target_psnr", &a.target_psnr,
-             "--reading both: > 0 steers --blind_weight at every check (x2 "
-             "or /2 at most) so that the renders sit this many dB from the "
-             "input model's at the check views and free viewpoints: a scene "
-             "whose message costs little spends the headroom on the blind "
-             "reading; 0: the weight stays as given");
+             "--reading both: > 0 raises --blind_weight at every check (x2 "
+             "at most, back down to it at least) while the renders sit "
+             "above this many dB from the input model's at the check views "
+             "and free viewpoints: a scene whose message costs little spends "
+             "the headroom on the blind reading; 0: the weight stays as "
+             "given");
   parser.Add("mse_weight", &a.mse_weight,
              "> 0: image loss = this x MSE (PSNR's measure) instead of L1 + "
              "D-SSIM");
@@ -483,7 +484,13 @@ int RunEmbed(int argc, char** argv) {
   if (a.reading == "both") {
     options.blind.weight = a.blind_weight;
     options.blind.margin = a.blind_margin;
+    if (!(a.target_psnr >= 0 && a.target_psnr <= 100)) {
+      Fail("--target_psnr: decibels, 0 (off) to 100");
+    }
     options.budget.target_db = a.target_psnr;
+    // The given weight is the floor: the target spends headroom, it never
+    // weakens the blind reading the user asked for.
+    if (a.blind_weight > 0) options.budget.min_weight = a.blind_weight;
   } else if (parser.Given("blind_weight") || parser.Given("blind_margin") ||
              parser.Given("target_psnr")) {
     Fail(
