@@ -292,8 +292,15 @@ std::string Embedder::RunSignature() const {
     j["blind_margin"] = options_.blind.margin;
   }
   if (options_.budget.enabled()) {
+    // What the weight is steered by: the target, the step, the bounds, and
+    // the checks (when and where they read).
     j["target_psnr"] = {options_.budget.target_db,
-                        options_.budget.db_per_doubling, options_.check_every};
+                        options_.budget.db_per_doubling,
+                        options_.budget.min_weight,
+                        options_.budget.max_weight,
+                        options_.check_every,
+                        options_.check_views.size(),
+                        options_.check_free_views.size()};
   }
   if (options_.adam.feature_lr != AdamOptions().feature_lr) {
     j["feature_lr"] = options_.adam.feature_lr;
@@ -301,7 +308,10 @@ std::string Embedder::RunSignature() const {
   if (options_.mse_weight > 0) j["mse_weight"] = options_.mse_weight;
   if (options_.masking > 0) j["masking"] = options_.masking;
   if (options_.jpeg_quality > 0 && options_.jpeg_fraction > 0) {
-    j["jpeg_layer"] = {options_.jpeg_quality, options_.jpeg_fraction};
+    // "reference": the owner's reference goes through the JPEG too (a run
+    // from before that took it plain must not resume under the new term).
+    j["jpeg_layer"] = {options_.jpeg_quality, options_.jpeg_fraction,
+                       "reference"};
   }
   if (options_.hard_views > 0) {
     // The pool is rescored every check_every iterations: part of the run.
@@ -759,7 +769,10 @@ std::vector<std::vector<float>> Embedder::ReadCameras(
       *psnr += Psnr(image, *(*truths)[k]) / truths->size();
     }
     if (inputs && k < inputs->size()) {
-      *psnr_vs_input += Psnr(image, *(*inputs)[k]) / inputs->size();
+      // A view the change leaves untouched reads +inf: capped, so that one
+      // such view cannot carry the mean (and the budget) with it.
+      *psnr_vs_input +=
+          std::min(Psnr(image, *(*inputs)[k]), kMaxPsnrDb) / inputs->size();
     }
   }
   return logits;
@@ -978,6 +991,13 @@ void Embedder::Resume(const std::string& path) {
   } catch (const nlohmann::json::exception&) {
     FailAt(path, "checkpoint embed state has fields of the wrong type");
   }
+  // Checked before any state is replaced.
+  const bool weight_in_bounds = !options_.budget.enabled() ||
+                                (blind_weight >= options_.budget.min_weight &&
+                                 blind_weight <= options_.budget.max_weight);
+  if (!std::isfinite(blind_weight) || blind_weight < 0 || !weight_in_bounds) {
+    FailAt(path, "checkpoint's blind weight is not one this run can steer");
+  }
   model_ = std::move(c.model);
   adam_.Init(model_);
   for (int g = 0; g < kNumParamGroups; ++g) {
@@ -998,9 +1018,6 @@ void Embedder::Resume(const std::string& path) {
   rng_in >> rng_;
   origin_ = std::move(origin);
   zero_ber_checks_ = zero_ber_checks;
-  if (!std::isfinite(blind_weight) || blind_weight < 0) {
-    FailAt(path, "checkpoint's blind weight is not a weight");
-  }
   blind_.weight = blind_weight;
   if (pool_ && extra.contains("pool_deficits")) {
     std::vector<double> deficits;

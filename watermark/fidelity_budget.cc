@@ -17,7 +17,7 @@ double NextBlindWeight(const FidelityBudget& budget, double weight,
 }
 
 void CheckFidelityBudget(const FidelityBudget& budget) {
-  if (!(budget.target_db >= 0) || budget.target_db > 100) {
+  if (!(budget.target_db >= 0) || budget.target_db > kMaxPsnrDb) {
     throw std::invalid_argument(
         "target_psnr must be in decibels, 0 (off) to 100");
   }

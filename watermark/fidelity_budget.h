@@ -6,6 +6,9 @@
 
 namespace watergs {
 
+// The highest PSNR a check counts (dB): an untouched view reads +inf.
+inline constexpr double kMaxPsnrDb = 100;
+
 struct FidelityBudget {
   // PSNR (dB) of the watermarked renders against the input model's renders
   // the run steers towards; <= 0: off (the weight stays as given).

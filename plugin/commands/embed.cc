@@ -488,9 +488,22 @@ int RunEmbed(int argc, char** argv) {
       Fail("--target_psnr: decibels, 0 (off) to 100");
     }
     options.budget.target_db = a.target_psnr;
-    // The given weight is the floor: the target spends headroom, it never
-    // weakens the blind reading the user asked for.
-    if (a.blind_weight > 0) options.budget.min_weight = a.blind_weight;
+    if (options.budget.enabled()) {
+      if (a.check_views < 1) {
+        Fail(
+            "--target_psnr steers the blind weight at the checks: give "
+            "--check_views >= 1");
+      }
+      if (!(a.blind_weight > 0 &&
+            a.blind_weight <= options.budget.max_weight)) {
+        Fail(
+            "--target_psnr raises --blind_weight from its value, which must "
+            "be > 0 and <= 64");
+      }
+      // The given weight is the floor: the target spends headroom, it never
+      // weakens the blind reading the user asked for.
+      options.budget.min_weight = a.blind_weight;
+    }
   } else if (parser.Given("blind_weight") || parser.Given("blind_margin") ||
              parser.Given("target_psnr")) {
     Fail(
@@ -605,9 +618,9 @@ int RunEmbed(int argc, char** argv) {
       100 * after.aggregate_ber, before.psnr, after.psnr, psnr_vs_raw);
   if (options.budget.enabled()) {
     std::printf(
-        "embed: blind weight %.3g -> %.3g (--target_psnr %.2f dB; the last "
-        "check read %.2f dB from the input's renders at %zu views and %zu "
-        "free viewpoints)\n",
+        "embed: blind weight %.3g -> %.3g after the last check (--target_psnr "
+        "%.2f dB; the renders now read %.2f dB from the input's at %zu check "
+        "views and %zu free viewpoints)\n",
         options.blind.weight, embedder.blind_weight(), options.budget.target_db,
         after.psnr_vs_input, options.check_views.size(),
         options.check_free_views.size());

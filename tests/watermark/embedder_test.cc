@@ -556,6 +556,14 @@ TEST(Embedder, TargetPsnrSteersTheBlindWeightByTheChecksDistanceFromTheInput) {
     e->Run();
     return e;
   };
+  // Before any step every view is the input's: +inf, read as the cap.
+  {
+    EmbedOptions steered = o;
+    steered.budget.target_db = 1;
+    Embedder fresh(steered, s.views, s.train, s.model, 3.0, &decoder, message,
+                   MakeCpuRasterizer());
+    EXPECT_DOUBLE_EQ(fresh.Check(o.check_views).psnr_vs_input, kMaxPsnrDb);
+  }
   const auto low = run(1), high = run(99);
   EXPECT_DOUBLE_EQ(low->blind_weight(), 0.5 * std::exp2(checks));
   EXPECT_DOUBLE_EQ(high->blind_weight(), 0.5 / std::exp2(checks));
@@ -567,6 +575,8 @@ TEST(Embedder, TargetPsnrSteersTheBlindWeightByTheChecksDistanceFromTheInput) {
     ImageRGB a, b;
     rasterizer->Forward(low->model(), s.views.Camera(v), {}, &a, nullptr);
     rasterizer->Forward(s.model, s.views.Camera(v), {}, &b, nullptr);
+    // Both clamped, as the check reads them.
+    for (float& x : a.data) x = std::clamp(x, 0.f, 1.f);
     for (float& x : b.data) x = std::clamp(x, 0.f, 1.f);
     direct += Psnr(a, b) / o.check_views.size();
   }
@@ -607,14 +617,19 @@ TEST(Embedder, JpegLayerComparesWithTheInputThroughTheSameJpeg) {
   o.margin = 0.5;
   o.distortions = ParseDistortionList("identity");
   o.jpeg_quality = 50;
-  o.jpeg_fraction = 1;
+  // Half the steps through JPEG, half plain, from one model that does not
+  // move (no rate): each reading has its own reference.
+  o.jpeg_fraction = 0.5;
+  ScaleRates(0, &o.adam);
   for (double free_fraction : {0.0, 1.0}) {
     o.free_view_fraction = free_fraction;
     Embedder embedder(o, s.views, s.train, s.model, 3.0, &decoder,
                       RandomBits(16, 9), MakeCpuRasterizer());
-    const EmbedStepStats stats = embedder.Step();
-    EXPECT_NEAR(stats.bce, std::log1p(std::exp(o.margin)), 1e-6)
-        << "free-view fraction " << free_fraction;
+    for (int step = 0; step < 12; ++step) {
+      const EmbedStepStats stats = embedder.Step();
+      EXPECT_NEAR(stats.bce, std::log1p(std::exp(o.margin)), 1e-6)
+          << "free-view fraction " << free_fraction << ", step " << step;
+    }
   }
 }
 
