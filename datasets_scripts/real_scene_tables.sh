@@ -83,8 +83,8 @@ for run in "${runs[@]}"; do
   fi
   if [ ! -f "$dir/all_blind.json" ]; then
     log "reading $label blind over every camera together"
-    "$bin" extract --input_path "$dir/wm.ply" --workspace_path "$scene" --downscale "$ds" \
-      --decoder "$decoder" --message "$msg" "${background[@]}" \
+    timed "all_blind:$label" "$bin" extract --input_path "$dir/wm.ply" --workspace_path "$scene" \
+      --downscale "$ds" --decoder "$decoder" --message "$msg" "${background[@]}" \
       --json "$dir/all_blind.json" > "$dir/all_blind.txt" 2>&1
   fi
 done
