@@ -17,6 +17,8 @@ set -euo pipefail
 root="$(cd "$(dirname "$0")/../../.." && pwd)"
 raw=${1:?usage: measure.sh RAW WM OUT}; wm=${2:?WM}; out=${3:?OUT}
 bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
+command -v convert > /dev/null ||
+  { echo "measure.sh: ImageMagick's convert is missing (apt-get install imagemagick)" >&2; exit 1; }
 scene="${SCENE:-$root/datasets_scripts/demo_scene}"
 message="text:WGS-26"
 mkdir -p "$out"
