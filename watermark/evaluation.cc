@@ -293,27 +293,32 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
       ExtractWatermark(rasterizer, raw, cameras, report.view_names, decoder,
                        nullptr, options.background, options.thresholds)
           .views;
-  const auto owner_of = [&](const ExtractionResult& extraction) {
+  const auto owner_of = [&](const ExtractionResult& extraction,
+                            const std::vector<ViewDecode>* reference_views =
+                                nullptr) {
     done += int64_t(n);
     return AggregateViews(
-        DifferenceViews(extraction.views, raw_views, &message),
+        DifferenceViews(extraction.views,
+                        reference_views ? *reference_views : raw_views,
+                        &message),
         decoder.NumBits(), &message, options.thresholds);
   };
   // `draws`: the figures of the draws after the first (random attacks).
-  const auto add_row = [&](std::string model, std::string attack,
-                           std::string kind, size_t gaussians, Row row,
-                           std::vector<AttackDraw> draws = {}) {
-    ExtractionResult owner = owner_of(row.extraction);
-    draws.insert(draws.begin(), ReadDraw(row.extraction, owner));
-    char status[96];
-    std::snprintf(status, sizeof(status), "%s BER %.1f%%", attack.c_str(),
-                  100 * row.extraction.ber);
-    step(done, status);
-    report.robustness.push_back({std::move(model), std::move(attack),
-                                 std::move(kind), gaussians,
-                                 std::move(row.extraction), std::move(owner),
-                                 row.psnr, std::move(draws)});
-  };
+  const auto add_row =
+      [&](std::string model, std::string attack, std::string kind,
+          size_t gaussians, Row row, std::vector<AttackDraw> draws = {},
+          const std::vector<ViewDecode>* reference_views = nullptr) {
+        ExtractionResult owner = owner_of(row.extraction, reference_views);
+        draws.insert(draws.begin(), ReadDraw(row.extraction, owner));
+        char status[96];
+        std::snprintf(status, sizeof(status), "%s BER %.1f%%", attack.c_str(),
+                      100 * row.extraction.ber);
+        step(done, status);
+        report.robustness.push_back(
+            {std::move(model), std::move(attack), std::move(kind), gaussians,
+             std::move(row.extraction), std::move(owner), row.psnr,
+             std::move(draws)});
+      };
   // The cameras an attack that renders the scene (prune_significance) sees:
   // the views not evaluated, the training split when the evaluated ones are
   // held out; all of them when every view is evaluated.
@@ -355,8 +360,14 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
     const RenderAttack attack = [spec](const ImageRGB& image) {
       return AttackAsDecoded(spec, image);
     };
+    // The owner's reference through the same image attack (extractor.h).
+    const std::vector<ViewDecode> attacked_raw =
+        ExtractWatermark(rasterizer, raw, cameras, report.view_names, decoder,
+                         nullptr, options.background, options.thresholds,
+                         attack)
+            .views;
     add_row("watermarked", ToString(spec), "2d", watermarked.size(),
-            extract(watermarked, cameras, attack));
+            extract(watermarked, cameras, attack), {}, &attacked_raw);
   }
   add_row("raw", "identity", "3d", raw.size(), extract(raw, cameras, {}));
   if (options.show_progress) progress.Finish();

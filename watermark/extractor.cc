@@ -128,10 +128,13 @@ OwnerExtraction ExtractWatermarkWithReference(
     Fail("owner's reading: " + std::to_string(reference_cameras.size()) +
          " reference cameras for " + std::to_string(cameras.size()) + " views");
   }
+  // The reference goes through the suspect's attack too (as detect sends the
+  // raw render through the suspect image's JPEG): what the attack does to
+  // any render of the scene then cancels, and only the watermark is read.
   const ExtractionResult raw =
       ExtractWatermark(rasterizer, reference,
                        reference_cameras.empty() ? cameras : reference_cameras,
-                       names, decoder, nullptr, background, thresholds);
+                       names, decoder, nullptr, background, thresholds, attack);
   out.owner =
       AggregateViews(DifferenceViews(out.blind.views, raw.views, expected),
                      decoder.NumBits(), expected, thresholds);

@@ -117,8 +117,10 @@ struct OwnerExtraction {
 };
 
 // ExtractWatermark of `model`, and the owner's reading against `reference`
-// rendered from the same cameras (clean: `attack` applies to the suspect's
-// renders only, as an owner renders the raw model himself), or from
+// rendered from the same cameras and sent through the same `attack` (as
+// detect sends the raw render the way the suspect image went: what a JPEG
+// does to any render of the scene then cancels; docs/history.md,
+// "Screenshots: registration and the reference"), or from
 // `reference_cameras` when given (one per camera: a suspect moved by a
 // similarity is rendered from moved cameras, the raw model from the
 // original ones).

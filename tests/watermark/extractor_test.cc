@@ -235,6 +235,37 @@ TEST(Extractor, OwnerReadingOfTheReferenceItselfIsAbsent) {
   EXPECT_THROW(DifferenceViews(one, none, nullptr), Error);
 }
 
+// Through an image attack the reference goes the suspect's way too: a
+// suspect that is the reference reads every difference exactly 0 (with a
+// clean reference the attack's own shift of the logits would remain).
+TEST(Extractor, OwnerReadingSendsTheReferenceThroughTheSameAttack) {
+  ExtractScene s;
+  Decoder decoder(&s.net);
+  auto rasterizer = MakeCpuRasterizer();
+  const RenderAttack darken = [](const ImageRGB& image) {
+    ImageRGB out = image;
+    for (float& v : out.data) v *= 0.5f;
+    return out;
+  };
+  const OwnerExtraction both = ExtractWatermarkWithReference(
+      *rasterizer, s.model, s.model, s.cameras, s.names, decoder, nullptr,
+      {0, 0, 0}, VerificationThresholds{}, darken);
+  ASSERT_EQ(both.owner.views.size(), s.cameras.size());
+  double moved = 0;
+  for (size_t v = 0; v < s.cameras.size(); ++v) {
+    for (float d : both.owner.views[v].logits) EXPECT_EQ(d, 0.f) << v;
+    // The attack does move the logits: a clean reference would not cancel.
+    const ExtractionResult clean =
+        ExtractWatermark(*rasterizer, s.model, {s.cameras[v]}, {s.names[v]},
+                         decoder, nullptr, {0, 0, 0}, VerificationThresholds{});
+    for (size_t i = 0; i < clean.views[0].logits.size(); ++i) {
+      moved +=
+          std::abs(both.blind.views[v].logits[i] - clean.views[0].logits[i]);
+    }
+  }
+  EXPECT_GT(moved, 1e-3);
+}
+
 TEST(Extractor, RefusesAnExpectedMessageOfTheWrongLength) {
   ExtractScene s;
   Decoder decoder(&s.net);
