@@ -205,6 +205,7 @@ H2B_DIR = "results/real_llff/horns_252x189_both/"
 BOTH_SEEDS = ("both_seed0", "both_seed1", "both_seed2")
 T38 = ("both_seed0_t38", "both_seed1_t38", "both_seed2_t38")
 BUDGET_DEMO = "results/blind_budget/demo/probe_results.txt"
+JPEG_REF = "results/viewers/jpeg_reference/"
 F2B = F2B_DIR + "tables.md"
 H2B = H2B_DIR + "tables.md"
 LEGO_OWNER = ("owner_seed0", "owner_seed1", "owner_seed2")
@@ -330,7 +331,7 @@ CLAIMS = [
           grep("results/demo/report.html", r'class="attack">jpeg:75 .*?<td class="num">([\d.]+)% / ')),
     Claim("(the owner's reading alone at {} dB, \"inconclusive\" blind",
           grep("results/demo/first_default_run_demo.log", r"watermarked vs the raw renders: ([\d.]+) dB")),
-    Claim("the first default {}%); screenshots read",
+    Claim("the first default {}%), a figure taken with",
           grep("results/demo/first_default_report.html", r'class="attack">jpeg:75 .*?<td class="num">([\d.]+)% / ')),
     Claim("**{} dB PSNR from the raw model's** on the held-out views, and the watermark costs {} dB",
           grep(DEMO, r"watermarked vs the raw renders: ([\d.]+) dB"),
@@ -568,6 +569,9 @@ CLAIMS = [
           highest(grep(F2B_DIR + "runs/both_seed0/all_blind.txt", r"aggregated over .*\((\d+) of 48 bits\)"),
                   grep(H2B_DIR + "runs/both_seed0/all_blind.txt", r"aggregated over .*\((\d+) of 48 bits\)")),
           ),
+    Claim("held-out views then read {} / {}% a view at JPEG 90 / 75, each set \"present\" together",
+          *[combine(lambda v: 100 * v[0], json_at(JPEG_REF + f"default_jpeg{q}.json", "owner", "view_ber", "mean"))
+            for q in (90, 75)]),
     Claim("at most {}% per held-out view on both, at {}-{} dB (seeds 0-2;",
           highest(*[cell(d, (r, "blind"), "held-out mean") for d in (F2B, H2B) for r in T38]),
           span(*[cell(d, (r, "owner"), FROM_RAW) for d in (F2B, H2B) for r in T38])),
