@@ -24,7 +24,8 @@ load_after=$(cut -d' ' -f1-3 /proc/loadavg)
 {
   echo "# The everyday test tier, timed by scripts/time_fast_tier.sh"
   echo "command: ${command[*]/#$root\//} (colmap on PATH replaced by a stand-in that fails)"
-  echo "commit: $(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- . 2>/dev/null || echo ', working tree dirty (others editing the checkout)')"
+  # The record being written is not part of what was tested.
+  echo "commit: $(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- . ":(exclude)$out" 2>/dev/null || echo ', working tree dirty (others editing the checkout)')"
   echo "date: $(date -u '+%Y-%m-%d %H:%M UTC')"
   echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')"
   echo "load average (1, 5, 15 min) before: $load_before; after: $load_after"
