@@ -288,7 +288,8 @@ EvaluationReport EvaluateWatermark(Rasterizer& rasterizer,
     return row;
   };
   // The raw model's logits at the evaluated cameras: the owner's reading
-  // of every row subtracts them (a moved scene's cameras see the same view).
+  // of every 3D row subtracts them (a moved scene's cameras see the same
+  // view); a 2D row subtracts them through its own attack (below).
   const std::vector<ViewDecode> raw_views =
       ExtractWatermark(rasterizer, raw, cameras, report.view_names, decoder,
                        nullptr, options.background, options.thresholds)

@@ -120,7 +120,8 @@ struct RobustnessRow {
   // Gaussians rendered.
   size_t num_gaussians = 0;
   // Extraction against the message: blind, and the owner's reading (each
-  // view's logits minus the raw model's at the same viewpoint, extractor.h).
+  // view's logits minus the raw model's at the same viewpoint, through the
+  // same attack on renders for a "2d" row; extractor.h).
   ExtractionResult extraction;
   ExtractionResult owner;
   // Mean PSNR (dB) over the views of what was decoded (the attacked model's
