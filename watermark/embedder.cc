@@ -413,10 +413,9 @@ std::shared_ptr<const std::vector<float>> Embedder::ReferenceLogits(
   ImageRGB region;
   if (!patch.empty()) CropImage(*image, patch, &region);
   if (plan.jpeg) {
-    ImageAttackSpec jpeg;
-    jpeg.kind = ImageAttackKind::kJpeg;
-    jpeg.value = options_.jpeg_quality;
-    region = ApplyImageAttack(jpeg, patch.empty() ? *image : region);
+    region = ApplyImageAttack(
+        {ImageAttackKind::kJpeg, double(options_.jpeg_quality)},
+        patch.empty() ? *image : region);
   }
   auto logits = std::make_shared<const std::vector<float>>(
       decoder_->Logits(patch.empty() && !plan.jpeg ? *image : region));
@@ -723,8 +722,9 @@ const std::vector<std::vector<float>>& Embedder::CheckReference(
   }
   check_reference_.clear();
   check_reference_views_ = views;
-  for (const RenderCamera& camera : CheckCameras(views)) {
-    check_reference_.push_back(decoder_->Logits(*RenderInput(camera)));
+  // The input's renders are CheckInputs' (rendered once for both).
+  for (const auto& input : CheckInputs(views)) {
+    check_reference_.push_back(decoder_->Logits(*input));
   }
   return check_reference_;
 }

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -484,10 +485,12 @@ int RunEmbed(int argc, char** argv) {
   if (a.reading == "both") {
     options.blind.weight = a.blind_weight;
     options.blind.margin = a.blind_margin;
-    if (!(a.target_psnr >= 0 && a.target_psnr <= 100)) {
-      Fail("--target_psnr: decibels, 0 (off) to 100");
-    }
     options.budget.target_db = a.target_psnr;
+    try {
+      CheckFidelityBudget(options.budget);
+    } catch (const std::invalid_argument& e) {
+      Fail(std::string("--") + e.what());
+    }
     if (options.budget.enabled()) {
       if (a.check_views < 1) {
         Fail(
@@ -498,7 +501,8 @@ int RunEmbed(int argc, char** argv) {
             a.blind_weight <= options.budget.max_weight)) {
         Fail(
             "--target_psnr raises --blind_weight from its value, which must "
-            "be > 0 and <= 64");
+            "be > 0 and <= " +
+            std::to_string(static_cast<int>(options.budget.max_weight)));
       }
       // The given weight is the floor: the target spends headroom, it never
       // weakens the blind reading the user asked for.

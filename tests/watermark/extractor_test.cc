@@ -103,6 +103,13 @@ TEST(Extractor, AggregatesLogitsAndReportsSpreadAndPValue) {
   EXPECT_EQ(j["recovered_bits"], BitsToString(r.recovered));
 }
 
+// An image attack that halves every value: it moves the decoder's logits.
+ImageRGB Darken(const ImageRGB& image) {
+  ImageRGB out = image;
+  for (float& v : out.data) v *= 0.5f;
+  return out;
+}
+
 // The observer sees, once a camera and in order, exactly the image that was
 // decoded: the clamped render after the attack (eval's PSNR column reads
 // these instead of rendering each view again).
@@ -110,16 +117,11 @@ TEST(Extractor, ObserverSeesEachDecodedImageAfterTheAttack) {
   ExtractScene s;
   Decoder decoder(&s.net);
   auto rasterizer = MakeCpuRasterizer();
-  const RenderAttack darken = [](const ImageRGB& image) {
-    ImageRGB out = image;
-    for (float& v : out.data) v *= 0.5f;
-    return out;
-  };
   std::vector<size_t> order;
   std::vector<ImageRGB> seen;
   const ExtractionResult r =
       ExtractWatermark(*rasterizer, s.model, s.cameras, s.names, decoder,
-                       nullptr, {0, 0, 0}, VerificationThresholds{}, darken,
+                       nullptr, {0, 0, 0}, VerificationThresholds{}, Darken,
                        [&](size_t camera, const ImageRGB& decoded) {
                          order.push_back(camera);
                          seen.push_back(decoded);
@@ -131,7 +133,7 @@ TEST(Extractor, ObserverSeesEachDecodedImageAfterTheAttack) {
     rasterizer->Forward(s.model, s.cameras[v], RenderOptions{}, &image,
                         nullptr);
     for (float& x : image.data) x = std::clamp(x, 0.f, 1.f);
-    const ImageRGB expected = darken(image);
+    const ImageRGB expected = Darken(image);
     ASSERT_EQ(seen[v].data.size(), expected.data.size());
     for (size_t i = 0; i < expected.data.size(); ++i) {
       ASSERT_FLOAT_EQ(seen[v].data[i], expected.data[i]) << v << " " << i;
@@ -242,14 +244,9 @@ TEST(Extractor, OwnerReadingSendsTheReferenceThroughTheSameAttack) {
   ExtractScene s;
   Decoder decoder(&s.net);
   auto rasterizer = MakeCpuRasterizer();
-  const RenderAttack darken = [](const ImageRGB& image) {
-    ImageRGB out = image;
-    for (float& v : out.data) v *= 0.5f;
-    return out;
-  };
   const OwnerExtraction both = ExtractWatermarkWithReference(
       *rasterizer, s.model, s.model, s.cameras, s.names, decoder, nullptr,
-      {0, 0, 0}, VerificationThresholds{}, darken);
+      {0, 0, 0}, VerificationThresholds{}, Darken);
   ASSERT_EQ(both.owner.views.size(), s.cameras.size());
   double largest_move = 0;
   for (size_t v = 0; v < s.cameras.size(); ++v) {
