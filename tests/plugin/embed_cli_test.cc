@@ -115,10 +115,11 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
   EXPECT_NE(chosen.output.find("; crop:0.1 "), std::string::npos)
       << chosen.output;
 
-  // --reading both (the default, at blind weight 0.5): the owner's reading
-  // plus the blind term moves the model elsewhere than the owner's alone
-  // (same seed); at weight 0 it is the owner's run exactly. The blind term's
-  // options with another reading are refused.
+  // --reading both (the default: blind weight 0.5 steered to 38 dB): the
+  // owner's reading plus the blind term moves the model elsewhere than the
+  // owner's alone (same seed); at weight 0 it is the owner's run exactly (the
+  // default target has no term to steer). The blind term's options with
+  // another reading are refused.
   const std::string reading_run =
       base +
       " --message hex:a5c3 --iterations 4 --check_every 2 "
@@ -128,7 +129,11 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
   const auto by_default =
       RunCommand(reading_run + std::string(dir / "wm_default.ply"));
   const auto both = RunCommand(reading_run + std::string(dir / "wm_both.ply") +
-                               " --reading both --blind_weight 0.5");
+                               " --reading both --blind_weight 0.5 "
+                               "--target_psnr 38");
+  const auto fixed =
+      RunCommand(reading_run + std::string(dir / "wm_fixed.ply") +
+                 " --blind_weight 0.5 --target_psnr 0");
   const auto both_zero =
       RunCommand(reading_run + std::string(dir / "wm_both0.ply") +
                  " --reading both --blind_weight 0");
@@ -136,8 +141,15 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
   ASSERT_EQ(by_default.exit_code, 0) << by_default.output;
   ASSERT_EQ(both.exit_code, 0) << both.output;
   ASSERT_EQ(both_zero.exit_code, 0) << both_zero.output;
+  ASSERT_EQ(fixed.exit_code, 0) << fixed.output;
   EXPECT_NE(ReadPly(dir / "wm_both.ply").model.sh_dc,
             ReadPly(dir / "wm_owner.ply").model.sh_dc);
+  EXPECT_NE(ReadPly(dir / "wm_fixed.ply").model.sh_dc,
+            ReadPly(dir / "wm_owner.ply").model.sh_dc);
+  EXPECT_NE(by_default.output.find("(--target_psnr 38"), std::string::npos)
+      << by_default.output;
+  EXPECT_EQ(fixed.output.find("--target_psnr"), std::string::npos)
+      << fixed.output;
   EXPECT_EQ(ReadPly(dir / "wm_default.ply").model.sh_dc,
             ReadPly(dir / "wm_both.ply").model.sh_dc);
   EXPECT_EQ(ReadPly(dir / "wm_both0.ply").model.sh_dc,
@@ -145,11 +157,11 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
   ExpectOneLineError(RunCommand(reading_run + std::string(dir / "wm_bad.ply") +
                                 " --reading owner --blind_weight 2"),
                      "--reading both");
-  // --target_psnr, checks at iterations 2 and 4 (the default run's): far
-  // below the renders' PSNR the weight doubles at each, and iterations 3-4
-  // train with the doubled one (the model moves elsewhere); at the highest
-  // target (100 dB, where a view's PSNR is capped) it stays at the given
-  // weight, its floor: the default run exactly.
+  // --target_psnr, checks at iterations 2 and 4: far below the renders'
+  // PSNR the weight doubles at each, and iterations 3-4 train with the
+  // doubled one (the model moves elsewhere); at the highest target (100 dB,
+  // where a view's PSNR is capped) it stays at the given weight, its floor:
+  // the fixed-weight run exactly.
   const auto spend = RunCommand(reading_run + std::string(dir / "wm_t1.ply") +
                                 " --target_psnr 1");
   const auto keep = RunCommand(reading_run + std::string(dir / "wm_t100.ply") +
@@ -164,15 +176,19 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
             std::string::npos)
       << keep.output;
   EXPECT_NE(ReadPly(dir / "wm_t1.ply").model.sh_dc,
-            ReadPly(dir / "wm_default.ply").model.sh_dc);
+            ReadPly(dir / "wm_fixed.ply").model.sh_dc);
   EXPECT_EQ(ReadPly(dir / "wm_t100.ply").model.sh_dc,
-            ReadPly(dir / "wm_default.ply").model.sh_dc);
+            ReadPly(dir / "wm_fixed.ply").model.sh_dc);
   ExpectOneLineError(RunCommand(reading_run + std::string(dir / "wm_bad.ply") +
                                 " --target_psnr 38 --blind_weight 100"),
                      "<= 64");
-  // Without a target any weight goes.
+  // The default target holds the weight to the same bound, and says how to
+  // leave it; without a target any weight goes.
+  ExpectOneLineError(RunCommand(reading_run + std::string(dir / "wm_bad.ply") +
+                                " --blind_weight 100"),
+                     "--target_psnr 0");
   ASSERT_EQ(RunCommand(reading_run + std::string(dir / "wm_w100.ply") +
-                       " --blind_weight 100")
+                       " --blind_weight 100 --target_psnr 0")
                 .exit_code,
             0);
   ExpectOneLineError(RunCommand(reading_run + std::string(dir / "wm_bad.ply") +
