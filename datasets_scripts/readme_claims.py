@@ -204,6 +204,8 @@ DETECT_COST = "results/viewers/detect_cost/"
 VIEWER_BOTH = "results/viewers/default_both/ber.tsv"
 VIEWER_T38 = "results/viewers/default_t38/default/"
 VIEWER_T38J = "results/viewers/default_t38/jpeg_layer/"
+VIEWER_T38F = "results/viewers/default_t38/default_free/"
+VIEWER_T38JF = "results/viewers/default_t38/jpeg_layer_free/"
 F2B_DIR = "results/real_llff/fern_252x189_both/"
 H2B_DIR = "results/real_llff/horns_252x189_both/"
 BOTH_SEEDS = ("both_seed0", "both_seed1", "both_seed2")
@@ -650,7 +652,9 @@ CLAIMS = [
           grep(VIEWER_BOTH, r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
           grep(VIEWER_BOTH, r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)")),
     Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; each viewer's 6 together "
-          "\"present\" ({} of 48 wrong); the raw model's screenshots \"absent\" {} of 6 and {} of 6; the screenshots {} / {} dB "
+          "\"present\" ({} of 48 wrong); the raw model's screenshots \"absent\" {} of 6 and {} of 6; at 12 free viewpoints between "
+          "the cameras ({} register: one close-up of a blank surface has no features) gaussian-splats-3d {} of 12 \"present\" alone, "
+          "{}%, PlayCanvas {} of 12, {}%, the raw model's {} and {} \"absent\"; the held-out screenshots {} / {} dB "
           "from watergs' render under each viewer's conventions, so JPEG, not the renderer, costs most: watergs' own held-out "
           "renders at JPEG 90 read {}% a view (results/viewers/jpeg_reference/) | {} dB |",
           grep(VIEWER_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
@@ -661,16 +665,28 @@ CLAIMS = [
                   grep(VIEWER_T38 + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)")),
           grep(VIEWER_T38 + "ber.tsv", r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
           grep(VIEWER_T38 + "ber.tsv", r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
+          grep(VIEWER_T38F + "ber.tsv", r"^auto\tgs3d_wm\t(\d+) of 12"),
+          grep(VIEWER_T38F + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
+          grep(VIEWER_T38F + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(VIEWER_T38F + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
+          grep(VIEWER_T38F + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(VIEWER_T38F + "ber.tsv", r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
+          grep(VIEWER_T38F + "ber.tsv", r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
           grep(VIEWER_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
           grep(VIEWER_T38 + "gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
           combine(lambda v: 100 * v[0], json_at(JPEG_REF + "default_t38_jpeg90.json", "owner", "view_ber", "mean")),
           grep(DEMO, r"watermarked vs the raw renders: ([\d.]+) dB")),
-    Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; watergs' own held-out renders "
+    Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; 12 free viewpoints {} of 12 and {} of 12, "
+          "{}% / {}%; watergs' own held-out renders "
           "at JPEG 90 {}% a view as the owner, {}% clean; read blind one held-out view {}%, as without the layer | {} dB |",
           grep(VIEWER_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
           grep(VIEWER_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
           grep(VIEWER_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
           grep(VIEWER_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(VIEWER_T38JF + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
+          grep(VIEWER_T38JF + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
+          grep(VIEWER_T38JF + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(VIEWER_T38JF + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
           scaled(100, json_at(VIEWER_T38J + "extract_jpeg90.json", "owner", "view_ber", "mean")),
           scaled(100, json_at(VIEWER_T38J + "extract_held.json", "owner", "view_ber", "mean")),
           scaled(100, json_at(VIEWER_T38J + "extract_held_blind.json", "view_ber", "mean")),

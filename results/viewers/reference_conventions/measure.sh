@@ -12,7 +12,9 @@
 # time}. OUT/ber.tsv: per setting and screenshot set, bits wrong per image, mean BER, verdicts
 # alone, the set together, the reference chosen and its PSNR to the screenshot. OUT/gap.tsv: the
 # screenshots' PSNR against watergs' render of the same model under each named conventions.
-# SHOTS_ONLY=1: stop there (no detect).
+# SHOTS_ONLY=1: stop there (no detect). FREE_VIEWS=N: N free viewpoints between the cameras (render
+# --num_views N --seed 0) instead of the held-out cameras. SCENE: another workspace (read at
+# --downscale 2 like the demo), e.g. fern's.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../../.." && pwd)"
 raw=${1:?usage: measure.sh RAW WM OUT}; wm=${2:?WM}; out=${3:?OUT}
@@ -20,12 +22,14 @@ bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
 command -v convert > /dev/null ||
   { echo "measure.sh: ImageMagick's convert is missing (apt-get install imagemagick)" >&2; exit 1; }
 scene="${SCENE:-$root/datasets_scripts/demo_scene}"
+views=(--split test)
+[ -n "${FREE_VIEWS:-}" ] && views=(--num_views "$FREE_VIEWS" --seed 0)
 message="text:WGS-26"
 mkdir -p "$out"
 for model in wm raw; do
   ply="$wm"; [ "$model" = raw ] && ply="$raw"
   [ -f "$out/watergs_$model/cameras.json" ] || "$bin" render --input_path "$ply" --workspace_path "$scene" \
-    --downscale 2 --split test --output_path "$out/watergs_$model" > "$out/watergs_$model.log" 2>&1
+    --downscale 2 "${views[@]}" --output_path "$out/watergs_$model" > "$out/watergs_$model.log" 2>&1
 done
 for viewer in gs3d playcanvas; do
   for model in wm raw; do
@@ -46,7 +50,7 @@ for conventions in watergs web playcanvas; do
     ply="$wm"; [ "$model" = raw ] && ply="$raw"
     ref="$out/conventions_${conventions}_$model"
     [ -f "$ref/cameras.json" ] || "$bin" render --input_path "$ply" --workspace_path "$scene" --downscale 2 \
-      --split test --render_conventions "$conventions" --output_path "$ref" > "$ref.log" 2>&1
+      "${views[@]}" --render_conventions "$conventions" --output_path "$ref" > "$ref.log" 2>&1
     for viewer in gs3d playcanvas; do
       /usr/bin/python3 "$root/tests/viewer/compare.py" "$ref" "$out/shots_${viewer}_$model" \
         --json "$out/gap_${viewer}_${model}_$conventions.json" > "$out/gap_${viewer}_${model}_$conventions.txt"
@@ -62,7 +66,7 @@ for setting in watergs auto; do
     --workspace_path "$scene" --downscale 2 --reference_conventions "$setting" \
     --json "$out/detect_$setting.json.tmp" > "$out/detect_$setting.txt" 2>&1
   mv "$out/detect_$setting.json.tmp" "$out/detect_$setting.json"
-  echo "$((SECONDS - start)) s for 24 images" > "$out/detect_$setting.time"
+  echo "$((SECONDS - start)) s for $(ls "$out"/jpeg_*/*.jpg | wc -l) images" > "$out/detect_$setting.time"
 done
 /usr/bin/python3 - "$out" <<'PY'
 import json, math, os, sys
