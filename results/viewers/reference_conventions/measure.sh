@@ -14,7 +14,7 @@
 # screenshots' PSNR against watergs' render of the same model under each named conventions.
 # SHOTS_ONLY=1: stop there (no detect). FREE_VIEWS=N: N free viewpoints between the cameras (render
 # --num_views N --seed 0) instead of the held-out cameras. SCENE: another workspace (read at
-# --downscale 2 like the demo), e.g. fern's.
+# --downscale 2 like the demo), e.g. fern's. SETTINGS: the detect settings to run ("watergs auto").
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../../.." && pwd)"
 raw=${1:?usage: measure.sh RAW WM OUT}; wm=${2:?WM}; out=${3:?OUT}
@@ -59,7 +59,7 @@ for conventions in watergs web playcanvas; do
 done
 [ -n "${SHOTS_ONLY:-}" ] && exit 0  # the screenshots and the gap only
 images="$out/jpeg_gs3d_wm,$out/jpeg_playcanvas_wm,$out/jpeg_gs3d_raw,$out/jpeg_playcanvas_raw"
-for setting in watergs auto; do
+for setting in ${SETTINGS:-watergs auto}; do
   [ -f "$out/detect_$setting.json" ] && continue
   start=$SECONDS
   nice -n 10 "$bin" detect --image_path "$images" --message "$message" --raw_path "$raw" \
