@@ -205,6 +205,8 @@ VIEWER_BOTH = "results/viewers/default_both/ber.tsv"
 VIEWER_T38 = "results/viewers/default_t38/default/"
 VIEWER_T38J = "results/viewers/default_t38/jpeg_layer/"
 VIEWER_T38F = "results/viewers/default_t38/default_free/"
+FERN_T38 = "results/viewers/default_t38/fern_t38/"
+FERN_T38J = "results/viewers/default_t38/fern_t38j/"
 VIEWER_T38JF = "results/viewers/default_t38/jpeg_layer_free/"
 F2B_DIR = "results/real_llff/fern_252x189_both/"
 H2B_DIR = "results/real_llff/horns_252x189_both/"
@@ -691,6 +693,25 @@ CLAIMS = [
           scaled(100, json_at(VIEWER_T38J + "extract_held.json", "owner", "view_ber", "mean")),
           scaled(100, json_at(VIEWER_T38J + "extract_held_blind.json", "view_ber", "mean")),
           grep(VIEWER_T38J + "eval.txt", r"watermarked vs raw renders \| ([\d.]+)")),
+    Claim("the default: gaussian-splats-3d {} of 3 \"present\" alone, mean {}%; PlayCanvas {} of 3, {}%; with `--jpeg_layer 90:0.5` "
+          "{} of 3 and {} of 3, {}% / {}%, each set of 3 together \"present\" ({} of 48 wrong); the raw model's \"absent\"; the "
+          "screenshots {} / {} dB from watergs' render under each viewer's conventions (the demo: {} / {}): on a real scene the "
+          "viewers' renderers, not JPEG alone, hide the message | {} / {} dB |",
+          grep(FERN_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
+          grep(FERN_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(FERN_T38 + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
+          grep(FERN_T38 + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(FERN_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
+          grep(FERN_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
+          grep(FERN_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          grep(FERN_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          highest(grep(FERN_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)"),
+                  grep(FERN_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)")),
+          grep(FERN_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
+          grep(FERN_T38 + "gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
+          grep(VIEWER_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
+          grep(VIEWER_T38 + "gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
+          cell(F2B, (T38[0], "owner"), FROM_RAW), cell(F2B, ("both_seed0_t38j", "owner"), FROM_RAW)),
     Claim("the default's weak side, JPEG ([history](docs/history.md#the-default-serves-both-readers)) | {} dB |",
           grep(DEMO_S29, r"watermarked vs the raw renders: ([\d.]+) dB")),
     Claim("| as the owner {} / {} / {}% per held-out view / 48 free viewpoints {} / {} / {}%; read blind (without the raw model): "
@@ -817,7 +838,7 @@ SETTINGS = [
     "(c + {}, r + {})", "{} px", "at {} MP", "-j{}", "{}-core", "Table {}", "(raw >= {} dB)", "(goal: {} min, {} GiB)",
     "to {} renders of the raw model", "per {}-Gaussian", "{}-nearest-neighbour", "{} of the same photos",
     "take {} s or more", "pool {} decoder", "sit above {} dB from the raw model's", "down to {} dB from", "until session {}",
-    "its floor {} (", "at under {}%", "real JPEG {}", "the default's {} (", "--target_psnr {}",
+    "its floor {} (", "at under {}%", "real JPEG {}", "at its {} held-out cameras", "the default's {} (", "--target_psnr {}",
     # the machine
     "{} cores",
     # versions of packages and formats
