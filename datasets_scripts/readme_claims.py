@@ -199,6 +199,7 @@ LEGO = "results/nerf_synthetic_lego/tables.md"
 BOTH = "results/reading_both/results.txt"
 BOTH_R2P2 = ("r2p2_both_w0.5_m0", "r2p2_both_w0.5_m0_s1", "r2p2_both_w0.5_m0_s2")
 RECORDING = "results/viewers/recording/recording.tsv"
+RECORDING_T38 = "results/viewers/default_t38/recording/recording.tsv"
 VIEWER_BER = "results/viewers/reference_conventions/ber.tsv"
 DETECT_COST = "results/viewers/detect_cost/"
 VIEWER_BOTH = "results/viewers/default_both/ber.tsv"
@@ -712,6 +713,15 @@ CLAIMS = [
           grep(VIEWER_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
           grep(VIEWER_T38 + "gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
           cell(F2B, (T38[0], "owner"), FROM_RAW), cell(F2B, ("both_seed0_t38j", "owner"), FROM_RAW)),
+    Claim("\"present\" from frame {}; {} of {} frames \"present\" alone (mean {}% a frame), all together {} of 48 wrong, \"present\"; "
+          "the raw model's recording \"absent\" ({} of 48); `detect` {} s a frame: H.264 takes more of the default's finer "
+          "band than of the first default's | {} dB |",
+          grep(RECORDING_T38, r"^gs3d_wm\t(?:[^\t]*\t){6}(\d+)"), grep(RECORDING_T38, r"^gs3d_wm\t(?:[^\t]*\t){4}(\d+) /"),
+          grep(RECORDING_T38, r"^gs3d_wm\t\d+\t\d+ of (\d+)"), grep(RECORDING_T38, r"^gs3d_wm\t(?:[^\t]*\t){3}([\d.]+)%"),
+          grep(RECORDING_T38, r"^gs3d_wm\t(?:[^\t]*\t){5}\w+ \((\d+) of 48\)"),
+          grep(RECORDING_T38, r"^gs3d_raw\t(?:[^\t]*\t){5}\w+ \((\d+) of 48\)"),
+          grep("results/viewers/default_t38/recording/detect_gs3d_wm.txt", r"over 33 images \(([\d.]+) s an image\)"),
+          grep(DEMO, r"watermarked vs the raw renders: ([\d.]+) dB")),
     Claim("the default's weak side, JPEG ([history](docs/history.md#the-default-serves-both-readers)) | {} dB |",
           grep(DEMO_S29, r"watermarked vs the raw renders: ([\d.]+) dB")),
     Claim("| as the owner {} / {} / {}% per held-out view / 48 free viewpoints {} / {} / {}%; read blind (without the raw model): "
