@@ -695,7 +695,8 @@ CLAIMS = [
           scaled(100, json_at(VIEWER_T38J + "extract_held_blind.json", "view_ber", "mean")),
           grep(VIEWER_T38J + "eval.txt", r"watermarked vs raw renders \| ([\d.]+)")),
     Claim("the default: gaussian-splats-3d {} of 3 \"present\" alone, mean {}%; PlayCanvas {} of 3, {}%; with `--jpeg_layer 90:0.5` "
-          "{} of 3 and {} of 3, {}% / {}%, each set of 3 together \"present\" ({} of 48 wrong); the raw model's \"absent\"; the "
+          "{} of 3 and {} of 3, {}% / {}%, each set of 3 together \"present\" ({} of 48 wrong); at 12 free viewpoints the default "
+          "{} of 12 and {} of 12 ({}% / {}%), the JPEG layer {} of 12 and {} of 12 ({}% / {}%); the raw model's \"absent\"; the "
           "screenshots {} / {} dB from watergs' render under each viewer's conventions (the demo: {} / {}): on a real scene the "
           "viewers' renderers, not JPEG alone, hide the message | {} / {} dB |",
           grep(FERN_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
@@ -708,6 +709,9 @@ CLAIMS = [
           grep(FERN_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
           highest(grep(FERN_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)"),
                   grep(FERN_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)")),
+          *[grep(d + "ber.tsv", r"^auto\t" + v + r"_wm\t(?:[^\t]*\t){" + k + r"}([\d.]+)" + end)
+            for d in ("results/viewers/default_t38/fern_t38_free/", "results/viewers/default_t38/fern_t38j_free/")
+            for k, end in (("3", " /"), ("2", "%")) for v in ("gs3d", "playcanvas")],
           grep(FERN_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
           grep(FERN_T38 + "gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
           grep(VIEWER_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
