@@ -57,6 +57,22 @@ def grep(path, pattern, flags=re.M):
 
 
 
+# A figure of one screenshot set (gs3d_wm, playcanvas_raw, ...) in a ber.tsv that
+# results/viewers/reference_conventions/measure.sh writes, read after "SETTING\tSET\t": screenshots
+# registered, the mean BER, how many read "present" or "absent" alone, bits wrong of the set together.
+_SHOT_FIELDS = {
+    "registered": r"(\d+) of \d+",
+    "mean": r"(?:[^\t]*\t){2}([\d.]+)%",
+    "present": r"(?:[^\t]*\t){3}(\d+) /",
+    "absent": r"(?:[^\t]*\t){3}\d+ / \d+ / (\d+)",
+    "together": r"(?:[^\t]*\t){4}\w+ \((\d+) of 48\)",
+}
+
+
+def shots(tsv, screenshots, field, setting="auto"):
+    return grep(tsv, rf"^{setting}\t{screenshots}\t" + _SHOT_FIELDS[field])
+
+
 def cell(path, keys, column, index=0):
     """The index-th number in a Markdown table cell: the row whose first cells are keys, the column
     whose header starts with column (the header row of the table that row is in)."""
@@ -208,6 +224,8 @@ VIEWER_T38J = "results/viewers/default_t38/jpeg_layer/"
 VIEWER_T38F = "results/viewers/default_t38/default_free/"
 FERN_T38 = "results/viewers/default_t38/fern_t38/"
 FERN_T38J = "results/viewers/default_t38/fern_t38j/"
+FERN_T38F = "results/viewers/default_t38/fern_t38_free/"
+FERN_T38JF = "results/viewers/default_t38/fern_t38j_free/"
 VIEWER_T38JF = "results/viewers/default_t38/jpeg_layer_free/"
 F2B_DIR = "results/real_llff/fern_252x189_both/"
 H2B_DIR = "results/real_llff/horns_252x189_both/"
@@ -565,9 +583,9 @@ CLAIMS = [
           json_at(DETECT_COST + "two_gradient.json", "time", "per_image_s")),
     Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}% (watergs' reference: {}%); PlayCanvas {} of 6, {}% ({}%); "
           "the raw model's screenshots \"absent\" {} of 6 and {} of 6 | {} dB |",
-          grep(VIEWER_BER, r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"), grep(VIEWER_BER, r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"), grep(VIEWER_BER, r"^watergs\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_BER, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"), grep(VIEWER_BER, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"), grep(VIEWER_BER, r"^watergs\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_BER, r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"), grep(VIEWER_BER, r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
+          shots(VIEWER_BER, "gs3d_wm", "present"), shots(VIEWER_BER, "gs3d_wm", "mean"), shots(VIEWER_BER, "gs3d_wm", "mean", setting="watergs"),
+          shots(VIEWER_BER, "playcanvas_wm", "present"), shots(VIEWER_BER, "playcanvas_wm", "mean"), shots(VIEWER_BER, "playcanvas_wm", "mean", setting="watergs"),
+          shots(VIEWER_BER, "gs3d_raw", "absent"), shots(VIEWER_BER, "playcanvas_raw", "absent"),
           grep("results/viewers/reference_conventions/README.md", r"\(`wm_embed.log`; ([\d.]+) dB from")),
     Claim("(downloaded and reconstructed again: fern {} photos, raw {} dB; horns {}, raw {} dB), seed 0 | as the owner "
           "{}% / {}% on both; read blind: fern {}% (p90 {}) / {}%, horns {}% (p90 {}) / {}%; Table 1 per image read "
@@ -648,33 +666,33 @@ CLAIMS = [
     Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; each viewer's 6 together "
           "\"present\" ({} of 48 wrong); the raw model's screenshots \"absent\" {} of 6 and {} of 6: the default's weak "
           "side, JPEG",
-          grep(VIEWER_BOTH, r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"), grep(VIEWER_BOTH, r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_BOTH, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"), grep(VIEWER_BOTH, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          highest(grep(VIEWER_BOTH, r"^auto\tgs3d_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)"),
-                  grep(VIEWER_BOTH, r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)")),
-          grep(VIEWER_BOTH, r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
-          grep(VIEWER_BOTH, r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)")),
+          shots(VIEWER_BOTH, "gs3d_wm", "present"), shots(VIEWER_BOTH, "gs3d_wm", "mean"),
+          shots(VIEWER_BOTH, "playcanvas_wm", "present"), shots(VIEWER_BOTH, "playcanvas_wm", "mean"),
+          highest(shots(VIEWER_BOTH, "gs3d_wm", "together"),
+                  shots(VIEWER_BOTH, "playcanvas_wm", "together")),
+          shots(VIEWER_BOTH, "gs3d_raw", "absent"),
+          shots(VIEWER_BOTH, "playcanvas_raw", "absent")),
     Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; each viewer's 6 together "
           "\"present\" ({} of 48 wrong); the raw model's screenshots \"absent\" {} of 6 and {} of 6; at 12 free viewpoints between "
           "the cameras ({} register: one close-up of a blank surface has no features) gaussian-splats-3d {} of 12 \"present\" alone, "
           "{}%, PlayCanvas {} of 12, {}%, the raw model's {} and {} \"absent\"; the held-out screenshots {} / {} dB "
           "from watergs' render under each viewer's conventions, so JPEG, not the renderer, costs most: watergs' own held-out "
           "renders at JPEG 90 read {}% a view (results/viewers/jpeg_reference/) | {} dB |",
-          grep(VIEWER_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(VIEWER_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_T38 + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(VIEWER_T38 + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          highest(grep(VIEWER_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)"),
-                  grep(VIEWER_T38 + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)")),
-          grep(VIEWER_T38 + "ber.tsv", r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
-          grep(VIEWER_T38 + "ber.tsv", r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
-          grep(VIEWER_T38F + "ber.tsv", r"^auto\tgs3d_wm\t(\d+) of 12"),
-          grep(VIEWER_T38F + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(VIEWER_T38F + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_T38F + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(VIEWER_T38F + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_T38F + "ber.tsv", r"^auto\tgs3d_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
-          grep(VIEWER_T38F + "ber.tsv", r"^auto\tplaycanvas_raw\t(?:[^\t]*\t){3}\d+ / \d+ / (\d+)"),
+          shots(VIEWER_T38 + "ber.tsv", "gs3d_wm", "present"),
+          shots(VIEWER_T38 + "ber.tsv", "gs3d_wm", "mean"),
+          shots(VIEWER_T38 + "ber.tsv", "playcanvas_wm", "present"),
+          shots(VIEWER_T38 + "ber.tsv", "playcanvas_wm", "mean"),
+          highest(shots(VIEWER_T38 + "ber.tsv", "gs3d_wm", "together"),
+                  shots(VIEWER_T38 + "ber.tsv", "playcanvas_wm", "together")),
+          shots(VIEWER_T38 + "ber.tsv", "gs3d_raw", "absent"),
+          shots(VIEWER_T38 + "ber.tsv", "playcanvas_raw", "absent"),
+          shots(VIEWER_T38F + "ber.tsv", "gs3d_wm", "registered"),
+          shots(VIEWER_T38F + "ber.tsv", "gs3d_wm", "present"),
+          shots(VIEWER_T38F + "ber.tsv", "gs3d_wm", "mean"),
+          shots(VIEWER_T38F + "ber.tsv", "playcanvas_wm", "present"),
+          shots(VIEWER_T38F + "ber.tsv", "playcanvas_wm", "mean"),
+          shots(VIEWER_T38F + "ber.tsv", "gs3d_raw", "absent"),
+          shots(VIEWER_T38F + "ber.tsv", "playcanvas_raw", "absent"),
           grep(VIEWER_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
           grep(VIEWER_T38 + "gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
           combine(lambda v: 100 * v[0], json_at(JPEG_REF + "default_t38_jpeg90.json", "owner", "view_ber", "mean")),
@@ -682,14 +700,14 @@ CLAIMS = [
     Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; 12 free viewpoints {} of 12 and {} of 12, "
           "{}% / {}%; watergs' own held-out renders "
           "at JPEG 90 {}% a view as the owner, {}% clean; read blind one held-out view {}%, as without the layer | {} dB |",
-          grep(VIEWER_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(VIEWER_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(VIEWER_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_T38JF + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(VIEWER_T38JF + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(VIEWER_T38JF + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(VIEWER_T38JF + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
+          shots(VIEWER_T38J + "ber.tsv", "gs3d_wm", "present"),
+          shots(VIEWER_T38J + "ber.tsv", "gs3d_wm", "mean"),
+          shots(VIEWER_T38J + "ber.tsv", "playcanvas_wm", "present"),
+          shots(VIEWER_T38J + "ber.tsv", "playcanvas_wm", "mean"),
+          shots(VIEWER_T38JF + "ber.tsv", "gs3d_wm", "present"),
+          shots(VIEWER_T38JF + "ber.tsv", "playcanvas_wm", "present"),
+          shots(VIEWER_T38JF + "ber.tsv", "gs3d_wm", "mean"),
+          shots(VIEWER_T38JF + "ber.tsv", "playcanvas_wm", "mean"),
           scaled(100, json_at(VIEWER_T38J + "extract_jpeg90.json", "owner", "view_ber", "mean")),
           scaled(100, json_at(VIEWER_T38J + "extract_held.json", "owner", "view_ber", "mean")),
           scaled(100, json_at(VIEWER_T38J + "extract_held_blind.json", "view_ber", "mean")),
@@ -699,19 +717,18 @@ CLAIMS = [
           "{} of 12 and {} of 12 ({}% / {}%), the JPEG layer {} of 12 and {} of 12 ({}% / {}%); the raw model's \"absent\"; the "
           "screenshots {} / {} dB from watergs' render under each viewer's conventions (the demo: {} / {}): on a real scene the "
           "viewers' renderers, not JPEG alone, hide the message | {} / {} dB |",
-          grep(FERN_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(FERN_T38 + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(FERN_T38 + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(FERN_T38 + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(FERN_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(FERN_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){3}(\d+) /"),
-          grep(FERN_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          grep(FERN_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){2}([\d.]+)%"),
-          highest(grep(FERN_T38J + "ber.tsv", r"^auto\tgs3d_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)"),
-                  grep(FERN_T38J + "ber.tsv", r"^auto\tplaycanvas_wm\t(?:[^\t]*\t){4}\w+ \((\d+) of 48\)")),
-          *[grep(d + "ber.tsv", r"^auto\t" + v + r"_wm\t(?:[^\t]*\t){" + k + r"}([\d.]+)" + end)
-            for d in ("results/viewers/default_t38/fern_t38_free/", "results/viewers/default_t38/fern_t38j_free/")
-            for k, end in (("3", " /"), ("2", "%")) for v in ("gs3d", "playcanvas")],
+          shots(FERN_T38 + "ber.tsv", "gs3d_wm", "present"),
+          shots(FERN_T38 + "ber.tsv", "gs3d_wm", "mean"),
+          shots(FERN_T38 + "ber.tsv", "playcanvas_wm", "present"),
+          shots(FERN_T38 + "ber.tsv", "playcanvas_wm", "mean"),
+          shots(FERN_T38J + "ber.tsv", "gs3d_wm", "present"),
+          shots(FERN_T38J + "ber.tsv", "playcanvas_wm", "present"),
+          shots(FERN_T38J + "ber.tsv", "gs3d_wm", "mean"),
+          shots(FERN_T38J + "ber.tsv", "playcanvas_wm", "mean"),
+          highest(shots(FERN_T38J + "ber.tsv", "gs3d_wm", "together"),
+                  shots(FERN_T38J + "ber.tsv", "playcanvas_wm", "together")),
+          *[shots(d + "ber.tsv", v + "_wm", field) for d in (FERN_T38F, FERN_T38JF)
+            for field in ("present", "mean") for v in ("gs3d", "playcanvas")],
           grep(FERN_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
           grep(FERN_T38 + "gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
           grep(VIEWER_T38 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),

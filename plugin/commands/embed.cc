@@ -511,12 +511,8 @@ int RunEmbed(int argc, char** argv) {
       }
       if (!(a.blind_weight > 0 &&
             a.blind_weight <= options.budget.max_weight)) {
-        Fail(std::string("--target_psnr") +
-             (default_target
-                  ? " (" +
-                        std::to_string(static_cast<int>(kDefaultTargetPsnr)) +
-                        " by default)"
-                  : std::string()) +
+        Fail(std::string(default_target ? "--target_psnr (on by default)"
+                                        : "--target_psnr") +
              " raises --blind_weight from its value, which must be > 0 and "
              "<= " +
              std::to_string(static_cast<int>(options.budget.max_weight)) +
