@@ -167,6 +167,30 @@ void CapExtent(double cap, ProjectedGaussian* p) {
   InvertCovariance2d(cov, p->conic);
 }
 
+// Rebuilds p->cov2d from gaussian-splats-3d's eigen decomposition: the
+// half gap between the eigenvalues at least sqrt(floor), the major axis
+// along normalize(b, lambda1 - a). False when the minor eigenvalue is then
+// not positive (the viewer draws nothing). The tiles stay Inria's, whose
+// radius takes lambda1 with the same floor of 0.1.
+bool FloorEigenGap(double floor, ProjectedGaussian* p) {
+  double* cov = p->cov2d;
+  const double mid = 0.5 * (cov[0] + cov[2]);
+  const double det = cov[0] * cov[2] - cov[1] * cov[1];
+  const double gap = std::sqrt(std::max(floor, mid * mid - det));
+  const double l1 = mid + gap, l2 = mid - gap;
+  if (!(l2 > 0)) return false;
+  double ex = cov[1], ey = l1 - cov[0];
+  const double norm = std::hypot(ex, ey);
+  // A zero axis only when b = 0 and a - d = 2 gap: the x axis is the major.
+  ex = norm > 0 ? ex / norm : 1.0;
+  ey = norm > 0 ? ey / norm : 0.0;
+  cov[0] = l2 + (l1 - l2) * ex * ex;
+  cov[1] = (l1 - l2) * ex * ey;
+  cov[2] = l2 + (l1 - l2) * ey * ey;
+  return InvertCovariance2d(cov, p->conic) && std::isfinite(p->conic[0]) &&
+         std::isfinite(p->conic[1]) && std::isfinite(p->conic[2]);
+}
+
 // Replaces Inria's 0.3 px^2 dilation of p->cov2d by `dilation` (<= 0.3:
 // the tiles and radius stay a superset); false if the covariance is then
 // degenerate.
@@ -221,6 +245,10 @@ ProjectedModel ProjectModel(const GaussianModel& model,
       continue;
     }
     if (extent_cap > 0) CapExtent(extent_cap, &p);
+    if (conventions.eigen_gap_floor > 0 &&
+        !FloorEigenGap(conventions.eigen_gap_floor, &p)) {
+      continue;
+    }
     if (Intersect(p.tiles, render_tiles).empty()) continue;
     ctx->visible[i] = 1;
     const float opacity = static_cast<float>(Sigmoid(model.opacity_logits[i]));
@@ -413,10 +441,12 @@ void CpuRasterizer::Backward(const GaussianModel& model,
         "forward pass");
   }
   if (ctx.conventions.clamp_base_color || ctx.conventions.extent_cap_px > 0 ||
-      ctx.conventions.dilation_px2 >= 0) {
+      ctx.conventions.dilation_px2 >= 0 ||
+      ctx.conventions.eigen_gap_floor > 0) {
     Fail(
-        "render backward: the base-colour clamp, extent cap and dilation of "
-        "render conventions have no backward pass (forward only)");
+        "render backward: the base-colour clamp, extent cap, dilation and "
+        "eigenvalue floor of render conventions have no backward pass (forward "
+        "only)");
   }
   std::vector<SplatGrad> splat_grads;
   RasterizeBackward(ctx.splats, ctx.bins, ctx.background, ctx.blend, grad_image,

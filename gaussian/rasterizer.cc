@@ -1,5 +1,7 @@
 #include "gaussian/rasterizer.h"
 
+#include <utility>
+
 #include "gaussian/util/error.h"
 
 namespace watergs {
@@ -30,6 +32,46 @@ void Rasterizer::AccumulateBlendWeights(const GaussianModel&,
   Fail(
       "render: per-Gaussian blend weights are computed by the CPU rasterizer "
       "only");
+}
+
+namespace {
+
+class ConventionsRasterizer : public Rasterizer {
+ public:
+  ConventionsRasterizer(std::unique_ptr<Rasterizer> inner,
+                        const RenderConventions& conventions)
+      : inner_(std::move(inner)), conventions_(conventions) {}
+  void Forward(const GaussianModel& model, const RenderCamera& camera,
+               const RenderOptions& options, ImageRGB* image,
+               std::unique_ptr<RenderContext>* context) override {
+    inner_->Forward(model, camera, WithOurs(options), image, context);
+  }
+  void Backward(const GaussianModel& model, const RenderContext& context,
+                const ImageRGB& grad_image, GaussianGradients* grads) override {
+    inner_->Backward(model, context, grad_image, grads);
+  }
+  void AccumulateBlendWeights(const GaussianModel& model,
+                              const RenderCamera& camera,
+                              const RenderOptions& options,
+                              std::vector<double>* weights) override {
+    inner_->AccumulateBlendWeights(model, camera, WithOurs(options), weights);
+  }
+
+ private:
+  RenderOptions WithOurs(RenderOptions options) const {
+    options.conventions = conventions_;
+    return options;
+  }
+  std::unique_ptr<Rasterizer> inner_;
+  RenderConventions conventions_;
+};
+
+}  // namespace
+
+std::unique_ptr<Rasterizer> WithConventions(
+    std::unique_ptr<Rasterizer> inner, const RenderConventions& conventions) {
+  CheckRenderConventions(conventions);
+  return std::make_unique<ConventionsRasterizer>(std::move(inner), conventions);
 }
 
 }  // namespace watergs

@@ -100,4 +100,11 @@ class Rasterizer {
 // The multithreaded CPU rasterizer (OpenMP over tiles).
 std::unique_ptr<Rasterizer> MakeCpuRasterizer();
 
+// `inner` rendering every view under `conventions` whatever the caller's
+// options say: code that reads renders (extraction) sees what another
+// renderer shows. Backward goes to `inner`, which refuses what it cannot
+// differentiate.
+std::unique_ptr<Rasterizer> WithConventions(
+    std::unique_ptr<Rasterizer> inner, const RenderConventions& conventions);
+
 }  // namespace watergs

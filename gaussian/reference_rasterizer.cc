@@ -83,6 +83,18 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
     blended = eigen.eigenvectors() * capped.asDiagonal() *
               eigen.eigenvectors().transpose();
   }
+  if (conventions.eigen_gap_floor > 0) {
+    const double a = blended(0, 0), b = blended(0, 1), d = blended(1, 1);
+    const double disc = 0.25 * (a - d) * (a - d) + b * b;
+    const double half_gap =
+        std::sqrt(std::max(conventions.eigen_gap_floor, disc));
+    const double l1 = 0.5 * (a + d) + half_gap, l2 = 0.5 * (a + d) - half_gap;
+    if (!(l2 > 0)) return s;
+    Eigen::Vector2d major(b, l1 - a);
+    major = major.norm() > 0 ? major.normalized() : Eigen::Vector2d(1, 0);
+    const Eigen::Vector2d minor(major.y(), -major.x());
+    blended = l1 * major * major.transpose() + l2 * minor * minor.transpose();
+  }
   s.conic = blended.inverse();
   if (!m.screen_offsets.empty()) {
     s.mean +=

@@ -11,7 +11,8 @@ namespace watergs {
 
 bool RenderConventions::IsDefault() const {
   return cull_centre_outside == 0 && max_sh_degree < 0 && !clamp_base_color &&
-         extent_cap_px == 0 && dilation_px2 == -1 && !unclamped_jacobian;
+         extent_cap_px == 0 && dilation_px2 == -1 && !unclamped_jacobian &&
+         eigen_gap_floor == 0;
 }
 
 const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
@@ -20,6 +21,7 @@ const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
     web.cull_centre_outside = 1.2;
     web.max_sh_degree = 0;
     web.clamp_base_color = true;
+    web.eigen_gap_floor = 0.1;
     RenderConventions playcanvas;
     playcanvas.extent_cap_px = 1024;
     playcanvas.dilation_px2 = 0.075;
@@ -30,7 +32,8 @@ const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
          "frame, the model's SH, colour clamped at 0"},
         {"web", web,
          "gaussian-splats-3d's defaults: splats centred outside 1.2x the "
-         "frame dropped, SH degree 0, base colour clamped to [0, 1]"},
+         "frame dropped, SH degree 0, base colour clamped to [0, 1], "
+         "near-round splats' eigenvalues split by at least 2 sqrt(0.1) px^2"},
         {"playcanvas", playcanvas,
          "PlayCanvas': screen extent capped at min(1024, the frame's "
          "shorter side) pixels, dilation 0.075 px^2, no Jacobian clamp"},
@@ -80,6 +83,10 @@ void CheckRenderConventions(const RenderConventions& conventions) {
   if (!(dilation == -1 || (dilation >= 0 && dilation <= kCovDilation))) {
     Fail("render: the dilation must be -1 (Inria's 0.3) or in [0, 0.3] px^2");
   }
+  const double floor = conventions.eigen_gap_floor;
+  if (!(floor >= 0 && floor <= 0.1)) {
+    Fail("render: the eigenvalue gap floor must be in [0, 0.1] px^4");
+  }
 }
 
 void RequireDefaultConventions(const RenderConventions& conventions,
@@ -87,8 +94,8 @@ void RequireDefaultConventions(const RenderConventions& conventions,
   if (!conventions.IsDefault()) {
     Fail("render: " + who +
          " renders with watergs' conventions only (another renderer's were "
-         "asked: a centre cull, SH cap, colour clamp, extent cap, dilation "
-         "or unclamped Jacobian): use the CPU");
+         "asked: a centre cull, SH cap, colour clamp, extent cap, dilation, "
+         "unclamped Jacobian or eigenvalue floor): use the CPU");
   }
 }
 

@@ -16,6 +16,8 @@
 #include "distortion/file_attacks.h"
 #include "gaussian/device.h"
 #include "gaussian/formats/model_io.h"
+#include "gaussian/rasterizer.h"
+#include "gaussian/render_conventions.h"
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
 #include "plugin/command.h"
@@ -121,7 +123,16 @@ int RunExtract(int argc, char** argv) {
              "Attack each render before decoding: jpeg:Q, resize:F, crop:F "
              "(a resized render is decoded at the camera's size again, as an "
              "owner decodes a smaller copy)");
+  std::string conventions_name = "watergs";
+  parser.Add("render_conventions", &conventions_name,
+             "Read the views as another renderer shows them, the raw model's "
+             "too (CPU only): what that viewer's screenshot at the same "
+             "camera carries, without a browser. " +
+                 RenderConventionsHelp());
   if (!parser.Parse(argc, argv)) return 0;
+  const RenderConventions conventions =
+      FindRenderConventions(conventions_name, "--render_conventions")
+          .conventions;
   if (num_views < 0 || max_views < 0) Fail("--num_views must be >= 0");
   if (split != "all" && split != "train" && split != "test") {
     Fail("--split: all, train or test");
@@ -202,23 +213,32 @@ int RunExtract(int argc, char** argv) {
       return AttackAsDecoded(spec, image);
     };
   }
+  // The frame check and alignment above render as watergs does; the views
+  // read below as the named renderer shows them.
+  const std::unique_ptr<Rasterizer> reader =
+      conventions.IsDefault()
+          ? std::unique_ptr<Rasterizer>()
+          : WithConventions(MakeCpuRasterizer(), conventions);
+  Rasterizer& read_with = reader ? *reader : *rasterizer;
   VerificationThresholds thresholds;
   thresholds.present_p = present_p;
   const Bits* claim = expected.empty() ? nullptr : &expected;
   OwnerExtraction both;
   if (raw_path.empty()) {
-    both.blind = ExtractWatermark(*rasterizer, ply.model, cameras, names,
-                                  *decoder, claim, ParseBackground(background),
-                                  thresholds, attack);
+    both.blind =
+        ExtractWatermark(read_with, ply.model, cameras, names, *decoder, claim,
+                         ParseBackground(background), thresholds, attack);
   } else {
     both = ExtractWatermarkWithReference(
-        *rasterizer, ply.model, raw.model, cameras, names, *decoder, claim,
+        read_with, ply.model, raw.model, cameras, names, *decoder, claim,
         ParseBackground(background), thresholds, attack, {}, raw_cameras);
   }
   const ExtractionResult& r = both.blind;
 
-  std::printf("extract: %zu views of %s (%zu Gaussians)\n", r.views.size(),
-              input_path.c_str(), ply.model.size());
+  std::printf(
+      "extract: %zu views of %s (%zu Gaussians)%s\n", r.views.size(),
+      input_path.c_str(), ply.model.size(),
+      reader ? (" as " + conventions_name + " renders them").c_str() : "");
   std::printf("extract: recovered message hex %s\n",
               BitsToHex(r.recovered).c_str());
   std::printf("extract: recovered bits        %s\n",
@@ -247,6 +267,7 @@ int RunExtract(int argc, char** argv) {
       j["owner"] = nlohmann::json::parse(ExtractionToJson(both.owner));
       j["owner"]["raw_path"] = raw_path;
     }
+    j["render_conventions"] = conventions_name;
     j["provenance"] = Provenance(argc, argv);
     AtomicWriteFile(json_path, j.dump(2) + "\n");
   }

@@ -95,6 +95,7 @@ TEST(RenderConventions, RegistryNamesWatergsFirstAndTheMeasuredWebSet) {
   EXPECT_EQ(web.max_sh_degree, 0);
   EXPECT_TRUE(web.clamp_base_color);
   EXPECT_EQ(web.extent_cap_px, 0);
+  EXPECT_EQ(web.eigen_gap_floor, 0.1);
   EXPECT_EQ(RenderConventionNames(), "watergs|web|playcanvas");
   try {
     FindRenderConventions("webb", "--reference_conventions");
@@ -230,6 +231,39 @@ TEST(RenderConventions, ExtentCapShrinksWideSplatsAlongTheirWideAxisOnly) {
   EXPECT_LT(Red(capped, 52, 36), Red(plain, 52, 36) - 0.01);
 }
 
+TEST(RenderConventions, EigenGapFloorStretchesNearRoundSplatsVertically) {
+  // A round splat of 0.5 px sigma: its dilated covariance 0.55 I has equal
+  // eigenvalues; gaussian-splats-3d splits them by 2 sqrt(0.1) and takes the
+  // major axis along normalize(b, lambda1 - a) = (0, 1): vertical.
+  const GaussianModel round = OneSplat(32, 24, 0.5);
+  RenderConventions floor;
+  floor.eigen_gap_floor = 0.1;
+  const double major = 0.55 + std::sqrt(0.1), minor = 0.55 - std::sqrt(0.1);
+  const ImageRGB floored = Render(round, AxisCamera(), floor);
+  EXPECT_NEAR(Red(floored, 33, 24), 0.25 * std::exp(-0.5 / minor), 1e-5);
+  EXPECT_NEAR(Red(floored, 32, 25), 0.25 * std::exp(-0.5 / major), 1e-5);
+  const ImageRGB plain = Render(round, AxisCamera(), RenderConventions());
+  EXPECT_NEAR(Red(plain, 33, 24), Red(plain, 32, 25), 1e-6);
+  EXPECT_LT(Red(floored, 33, 24), Red(plain, 33, 24) - 0.02);
+  // A splat far below a pixel: 0.3 + s^2 < sqrt(0.1) leaves the minor
+  // eigenvalue at or below 0, and the viewer draws nothing.
+  const GaussianModel dot = OneSplat(32, 24, 0.05);
+  EXPECT_GT(Lit(Render(dot, AxisCamera(), RenderConventions())), 0.01);
+  EXPECT_EQ(Lit(Render(dot, AxisCamera(), floor)), 0.0);
+  // An elongated splat (eigenvalues 9.3 and 1.3 px^2, 30 degrees from x)
+  // is past the floor: the same ellipse.
+  GaussianModel long_splat = OneSplat(32, 24, 1.0);
+  const double theta = M_PI / 6;
+  long_splat.quats = {float(std::cos(theta / 2)), 0, 0,
+                      float(std::sin(theta / 2))};
+  long_splat.log_scales[0] = float(std::log(3.0 * 4 / 50));
+  const ImageRGB a = Render(long_splat, AxisCamera(), floor);
+  const ImageRGB b = Render(long_splat, AxisCamera(), RenderConventions());
+  for (size_t k = 0; k < a.data.size(); ++k) {
+    ASSERT_NEAR(a.data[k], b.data[k], 1e-6) << k;
+  }
+}
+
 TEST(RenderConventions, FastForwardMatchesTheReferenceUnderEachNamedSet) {
   // Random scenes with means up to 30 px outside the frame, some splats
   // brighter than 1 and some wider than PlayCanvas' cap (17 px sigma in a
@@ -322,8 +356,11 @@ TEST(RenderConventions, BackwardRunsWithTheCullAndRefusesTheClampAndCap) {
 
   RenderConventions thin;
   thin.dilation_px2 = 0.1;
+  RenderConventions floor;
+  floor.eigen_gap_floor = 0.1;
   for (const RenderConventions& conventions :
-       {Web(), FindRenderConventions("playcanvas", "test").conventions, thin}) {
+       {Web(), FindRenderConventions("playcanvas", "test").conventions, thin,
+        floor}) {
     Render(model, camera, conventions, &context);
     try {
       MakeCpuRasterizer()->Backward(model, *context, ones, &grads);
@@ -349,6 +386,11 @@ TEST(RenderConventions, OutOfRangeValuesAndOtherRenderersFailInOneLine) {
   bad = RenderConventions();
   bad.dilation_px2 = 0.5;
   EXPECT_THROW(Render(model, AxisCamera(), bad), Error);
+  for (double floor : {-0.1, 0.2, double(NAN)}) {
+    bad = RenderConventions();
+    bad.eigen_gap_floor = floor;
+    EXPECT_THROW(Render(model, AxisCamera(), bad), Error) << floor;
+  }
   EXPECT_NO_THROW(RequireDefaultConventions(RenderConventions(), "x"));
   try {
     RequireDefaultConventions(Web(), "the CUDA rasterizer");
