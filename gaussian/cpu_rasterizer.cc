@@ -191,6 +191,16 @@ bool FloorEigenGap(double floor, ProjectedGaussian* p) {
          std::isfinite(p->conic[1]) && std::isfinite(p->conic[2]);
 }
 
+// True when the ellipse of p->cov2d spans fewer than `min_extent` pixels
+// along its major axis, 2 sqrt(2 lambda1).
+bool NarrowerThan(double min_extent, const ProjectedGaussian& p) {
+  const double* cov = p.cov2d;
+  const double mid = 0.5 * (cov[0] + cov[2]);
+  const double half_diff = 0.5 * (cov[0] - cov[2]);
+  const double lambda1 = mid + std::hypot(half_diff, cov[1]);
+  return !(2 * std::sqrt(2 * lambda1) >= min_extent);
+}
+
 // Replaces Inria's 0.3 px^2 dilation of p->cov2d by `dilation` (<= 0.3:
 // the tiles and radius stay a superset); false if the covariance is then
 // degenerate.
@@ -242,6 +252,10 @@ ProjectedModel ProjectModel(const GaussianModel& model,
     if (CulledByCentre(cam, p.mean2d, conventions)) continue;
     if (conventions.dilation_px2 >= 0 &&
         !Redilate(conventions.dilation_px2, &p)) {
+      continue;
+    }
+    if (conventions.min_extent_px > 0 &&
+        NarrowerThan(conventions.min_extent_px, p)) {
       continue;
     }
     if (extent_cap > 0) CapExtent(extent_cap, &p);
@@ -321,7 +335,7 @@ void CpuRasterizer::Forward(const GaussianModel& model,
       SortSplats(ProjectModel(model, render_tiles, ctx.get()), ctx.get());
   BinSplats(splat_tiles, render_tiles, &ctx->bins);
   RasterizeForward(ctx->splats, ctx->bins, rect, options.background, image,
-                   &ctx->blend);
+                   &ctx->blend, options.conventions.falloff);
   if (context != nullptr) *context = std::move(ctx);
 }
 
@@ -337,7 +351,8 @@ void CpuRasterizer::AccumulateBlendWeights(const GaussianModel& model,
   Forward(model, camera, options, &image, &context);
   const auto& ctx = static_cast<const CpuRenderContext&>(*context);
   std::vector<double> per_splat(ctx.splats.size(), 0.0);
-  AccumulateSplatWeights(ctx.splats, ctx.bins, ctx.blend.rect, &per_splat);
+  AccumulateSplatWeights(ctx.splats, ctx.bins, ctx.blend.rect, &per_splat,
+                         ctx.conventions.falloff);
   for (size_t k = 0; k < per_splat.size(); ++k) {
     (*weights)[ctx.splat_ids[k]] += per_splat[k];
   }
@@ -442,10 +457,14 @@ void CpuRasterizer::Backward(const GaussianModel& model,
   }
   if (ctx.conventions.clamp_base_color || ctx.conventions.extent_cap_px > 0 ||
       ctx.conventions.dilation_px2 >= 0 ||
-      ctx.conventions.eigen_gap_floor > 0) {
+      ctx.conventions.eigen_gap_floor > 0 ||
+      ctx.conventions.min_extent_px > 0 ||
+      ctx.conventions.falloff != Falloff::kInria) {
     Fail(
-        "render backward: the base-colour clamp, extent cap, dilation and "
-        "eigenvalue floor of render conventions have no backward pass (forward "
+        "render backward: the base-colour clamp, extent cap, dilation, "
+        "eigenvalue floor, minimum extent and falloff of render conventions "
+        "have no "
+        "backward pass (forward "
         "only)");
   }
   std::vector<SplatGrad> splat_grads;

@@ -4,6 +4,7 @@
 #include "gaussian/rasterize_forward.h"
 
 #include <algorithm>
+#include <type_traits>
 
 namespace watergs {
 namespace {
@@ -22,11 +23,26 @@ TilePixels PixelsOf(int tx, int ty, const PixelRect& rect) {
   return p;
 }
 
+// Another renderer's alpha at Gaussian falloff G = exp(power): 0 beyond
+// power -4 (d^2 = 8), and PlayCanvas' renormalised (G - e^-4) / (1 - e^-4).
+template <Falloff kFalloff>
+inline RowF FalloffAlpha(float opacity, const RowFalloff& f) {
+  if constexpr (kFalloff == Falloff::kInria) {
+    return opacity * f.G;
+  } else {
+    constexpr float kEdge = 0.018315638888734f;  // e^-4
+    const RowF g = kFalloff == Falloff::kNormalized
+                       ? (f.G - kEdge) * (1.f / (1.f - kEdge))
+                       : f.G;
+    return f.power >= -4.f ? opacity * g : RowF{};
+  }
+}
+
 // Blends one tile's list into the pixels of the tile that lie in `rect`.
 // on_weight(splat index, row of alpha * T) sees every blending weight: the
 // render passes a no-op (compiled away), the weight pass sums them, so both
 // take the same decisions.
-template <typename OnWeight>
+template <Falloff kFalloff, typename OnWeight>
 void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
                uint32_t count, int tx, int ty, const PixelRect& rect,
                const std::array<float, 3>& background, ImageRGB* image,
@@ -64,7 +80,7 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
       if (!RowReachesTile(s, dy, base_x)) continue;
       RowFalloff f;
       SplatRow(dx, dy, s.conic_a, s.conic_b, s.conic_c, &f);
-      RowF alpha = s.opacity * f.G;
+      RowF alpha = FalloffAlpha<kFalloff>(s.opacity, f);
       alpha = alpha > kMaxAlpha ? RowF{} + kMaxAlpha : alpha;
       const RowI ok = active[r] & (f.power <= 0.f) & (alpha >= kMinAlpha);
       const RowF test_T = T[r] * (1.f - alpha);
@@ -98,12 +114,26 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
   }
 }
 
+// Calls blend(std::integral_constant<Falloff, falloff>{}): one compiled
+// loop per falloff, Inria's free of the others' tests.
+template <typename Blend>
+void DispatchFalloff(Falloff falloff, Blend&& blend) {
+  switch (falloff) {
+    case Falloff::kInria:
+      return blend(std::integral_constant<Falloff, Falloff::kInria>{});
+    case Falloff::kCutAt8:
+      return blend(std::integral_constant<Falloff, Falloff::kCutAt8>{});
+    case Falloff::kNormalized:
+      return blend(std::integral_constant<Falloff, Falloff::kNormalized>{});
+  }
+}
+
 }  // namespace
 
 void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
                       const PixelRect& rect,
                       const std::array<float, 3>& background, ImageRGB* image,
-                      BlendState* state) {
+                      BlendState* state, Falloff falloff) {
   *image = ImageRGB(rect.width, rect.height);
   state->rect = rect;
   const size_t pixels = static_cast<size_t>(rect.width) * rect.height;
@@ -116,14 +146,19 @@ void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
     const int tx = bins.range.x0 + k % range_w;
     const int ty = bins.range.y0 + k / range_w;
     const uint32_t begin = bins.offsets[k], end = bins.offsets[k + 1];
-    BlendTile(splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
-              background, image, state, [](uint32_t, const RowF&) {});
+    auto blend = [&](auto mode) {
+      BlendTile<decltype(mode)::value>(
+          splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
+          background, image, state, [](uint32_t, const RowF&) {});
+    };
+    DispatchFalloff(falloff, blend);
   }
 }
 
 void AccumulateSplatWeights(const std::vector<Splat>& splats,
                             const TileBins& bins, const PixelRect& rect,
-                            std::vector<double>* splat_weights) {
+                            std::vector<double>* splat_weights,
+                            Falloff falloff) {
   // The blend writes an image and a state too; they are scratch here.
   ImageRGB image(rect.width, rect.height);
   BlendState state;
@@ -144,11 +179,15 @@ void AccumulateSplatWeights(const std::vector<Splat>& splats,
       const int tx = bins.range.x0 + k % range_w;
       const int ty = bins.range.y0 + k / range_w;
       const uint32_t begin = bins.offsets[k], end = bins.offsets[k + 1];
-      BlendTile(splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
-                background, &image, &state,
-                [&local](uint32_t splat, const RowF& w) {
-                  local[splat] += RowSum(w);
-                });
+      auto blend = [&](auto mode) {
+        BlendTile<decltype(mode)::value>(
+            splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
+            background, &image, &state,
+            [&local](uint32_t splat, const RowF& w) {
+              local[splat] += RowSum(w);
+            });
+      };
+      DispatchFalloff(falloff, blend);
     }
 #pragma omp critical
     for (size_t k = 0; k < local.size(); ++k) (*splat_weights)[k] += local[k];

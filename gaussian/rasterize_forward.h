@@ -70,17 +70,19 @@ struct BlendState {
 
 // Renders `rect` (inside the full frame, covered by bins.range) into `image`
 // (rect-sized) and fills `state`.
+// `falloff`: another renderer's alpha falloff (render_conventions.h).
 void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
                       const PixelRect& rect,
                       const std::array<float, 3>& background, ImageRGB* image,
-                      BlendState* state);
+                      BlendState* state, Falloff falloff = Falloff::kInria);
 
 // Adds to (*splat_weights)[k] (one entry per splat, sized by the caller) the
 // sum over `rect`'s pixels of splat k's blending weight alpha * T, with the
 // forward pass's own decisions (1/255 cut-off, 0.99 cap, early stop).
 void AccumulateSplatWeights(const std::vector<Splat>& splats,
                             const TileBins& bins, const PixelRect& rect,
-                            std::vector<double>* splat_weights);
+                            std::vector<double>* splat_weights,
+                            Falloff falloff = Falloff::kInria);
 
 // One tile row of 16 floats / ints (GCC vector extension: one AVX-512
 // register here, split into narrower registers on other targets). Written

@@ -24,6 +24,7 @@ struct RefSplat {
   Eigen::Vector3d color;
   // Inria's tile rectangle [x0, x1) x [y0, y1) in tiles.
   int tx0 = 0, ty0 = 0, tx1 = 0, ty1 = 0;
+  Falloff falloff = Falloff::kInria;
 };
 
 RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
@@ -75,6 +76,12 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
     blended -= (0.3 - conventions.dilation_px2) * Eigen::Matrix2d::Identity();
     if (!(blended.determinant() > 0)) return s;
   }
+  if (conventions.min_extent_px > 0) {
+    const double lambda1 =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(blended).eigenvalues()(
+            1);
+    if (!(2 * std::sqrt(2 * lambda1) >= conventions.min_extent_px)) return s;
+  }
   if (conventions.extent_cap_px > 0) {
     const double cap = std::min({double(conventions.extent_cap_px),
                                  double(cam.width), double(cam.height)});
@@ -114,6 +121,7 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
   s.ty0 = tile((py - radius) / 16, grid_y);
   s.ty1 = tile((py + radius + 15) / 16, grid_y);
   s.depth = t.z();
+  s.falloff = conventions.falloff;
   s.opacity = 1.0 / (1.0 + std::exp(-m.opacity_logits[i]));
   const double dir[3] = {world.x() - cam.Center().x(),
                          world.y() - cam.Center().y(),
@@ -136,7 +144,12 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
 double AlphaAt(const RefSplat& s, double x, double y, double* power) {
   const Eigen::Vector2d d = Eigen::Vector2d(x + 0.5, y + 0.5) - s.mean;
   *power = -0.5 * d.dot(s.conic * d);
-  return std::min(0.99, s.opacity * std::exp(*power));
+  double falloff = std::exp(*power);
+  if (s.falloff != Falloff::kInria && *power < -4) falloff = 0;
+  if (s.falloff == Falloff::kNormalized && falloff > 0) {
+    falloff = (falloff - std::exp(-4.0)) / (1 - std::exp(-4.0));
+  }
+  return std::min(0.99, s.opacity * falloff);
 }
 
 }  // namespace

@@ -12,7 +12,8 @@ namespace watergs {
 bool RenderConventions::IsDefault() const {
   return cull_centre_outside == 0 && max_sh_degree < 0 && !clamp_base_color &&
          extent_cap_px == 0 && dilation_px2 == -1 && !unclamped_jacobian &&
-         eigen_gap_floor == 0;
+         eigen_gap_floor == 0 && min_extent_px == 0 &&
+         falloff == Falloff::kInria;
 }
 
 const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
@@ -22,10 +23,13 @@ const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
     web.max_sh_degree = 0;
     web.clamp_base_color = true;
     web.eigen_gap_floor = 0.1;
+    web.falloff = Falloff::kCutAt8;
     RenderConventions playcanvas;
     playcanvas.extent_cap_px = 1024;
     playcanvas.dilation_px2 = 0.075;
     playcanvas.unclamped_jacobian = true;
+    playcanvas.min_extent_px = 1;
+    playcanvas.falloff = Falloff::kNormalized;
     return std::vector<NamedRenderConventions>{
         {"watergs", RenderConventions(),
          "watergs' and Inria's: every splat whose footprint touches the "
@@ -33,10 +37,13 @@ const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
         {"web", web,
          "gaussian-splats-3d's defaults: splats centred outside 1.2x the "
          "frame dropped, SH degree 0, base colour clamped to [0, 1], "
-         "near-round splats' eigenvalues split by at least 2 sqrt(0.1) px^2"},
+         "near-round splats' eigenvalues split by at least 2 sqrt(0.1) px^2, "
+         "each splat cut at 2.83 sigma"},
         {"playcanvas", playcanvas,
          "PlayCanvas': screen extent capped at min(1024, the frame's "
-         "shorter side) pixels, dilation 0.075 px^2, no Jacobian clamp"},
+         "shorter side) pixels, dilation 0.075 px^2, no Jacobian clamp, "
+         "splats under 1 px across dropped, alpha falling to 0 at 2.83 "
+         "sigma"},
     };
   }();
   return registry;
@@ -87,6 +94,10 @@ void CheckRenderConventions(const RenderConventions& conventions) {
   if (!(floor >= 0 && floor <= 0.1)) {
     Fail("render: the eigenvalue gap floor must be in [0, 0.1] px^4");
   }
+  const double min_extent = conventions.min_extent_px;
+  if (!(min_extent >= 0 && std::isfinite(min_extent))) {
+    Fail("render: the minimum extent must be 0 (none) or positive pixels");
+  }
 }
 
 void RequireDefaultConventions(const RenderConventions& conventions,
@@ -95,7 +106,8 @@ void RequireDefaultConventions(const RenderConventions& conventions,
     Fail("render: " + who +
          " renders with watergs' conventions only (another renderer's were "
          "asked: a centre cull, SH cap, colour clamp, extent cap, dilation, "
-         "unclamped Jacobian or eigenvalue floor): use the CPU");
+         "unclamped Jacobian, eigenvalue floor, minimum extent or falloff): "
+         "use the CPU");
   }
 }
 

@@ -18,6 +18,17 @@
 
 namespace watergs {
 
+// How a splat's alpha falls off with the Mahalanobis distance d from its
+// centre (o its opacity; every mode skips alpha below 1/255 and caps it at
+// 0.99 as Inria does).
+enum class Falloff {
+  kInria,       // o exp(-d^2 / 2) (Inria, watergs)
+  kCutAt8,      // the same, 0 beyond d^2 = 8 (2.83 sigma, where
+                // gaussian-splats-3d's quad ends)
+  kNormalized,  // o (exp(-d^2 / 2) - e^-4) / (1 - e^-4), 0 beyond d^2 = 8
+                // (PlayCanvas: 0 at its quad's edge)
+};
+
 struct RenderConventions {
   // Splats whose projected centre lies outside this multiple of the frame
   // (|2 x / width - 1| or |2 y / height - 1| above it, x, y the centre in
@@ -55,6 +66,13 @@ struct RenderConventions {
   // which Inria applies to the tile radius only (gaussian-splats-3d: 0.1;
   // at most 0.1 so Inria's tiles still cover the ellipse). 0: none.
   double eigen_gap_floor = 0;
+  // Splats whose ellipse is narrower than this many pixels along its major
+  // axis, 2 sqrt(2 lambda1) with lambda1 the larger eigenvalue of the
+  // dilated 2D covariance (the quad PlayCanvas draws, out to 2.83 sigma),
+  // are dropped (PlayCanvas' minPixelSize, 2 in its half-pixel units: 1).
+  // 0: none.
+  double min_extent_px = 0;
+  Falloff falloff = Falloff::kInria;
 
   // True when the rasterizer renders exactly as without conventions.
   bool IsDefault() const;

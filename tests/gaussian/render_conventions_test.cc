@@ -96,6 +96,9 @@ TEST(RenderConventions, RegistryNamesWatergsFirstAndTheMeasuredWebSet) {
   EXPECT_TRUE(web.clamp_base_color);
   EXPECT_EQ(web.extent_cap_px, 0);
   EXPECT_EQ(web.eigen_gap_floor, 0.1);
+  EXPECT_EQ(web.falloff, Falloff::kCutAt8);
+  EXPECT_EQ(
+      FindRenderConventions("playcanvas", "test").conventions.min_extent_px, 1);
   EXPECT_EQ(RenderConventionNames(), "watergs|web|playcanvas");
   try {
     FindRenderConventions("webb", "--reference_conventions");
@@ -264,6 +267,55 @@ TEST(RenderConventions, EigenGapFloorStretchesNearRoundSplatsVertically) {
   }
 }
 
+TEST(RenderConventions, MinExtentDropsSplatsNarrowerThanAPixelAcross) {
+  // Under PlayCanvas' dilation (0.075 px^2) a splat of 0.15 px sigma spans
+  // 2 sqrt(2 (0.0225 + 0.075)) = 0.88 px, one of 0.3 px 1.15 px: the first
+  // is dropped, the second drawn as without the limit.
+  RenderConventions playcanvas;
+  playcanvas.dilation_px2 = 0.075;
+  RenderConventions limited = playcanvas;
+  limited.min_extent_px = 1;
+  const GaussianModel narrow = OneSplat(32, 24, 0.15);
+  const GaussianModel wider = OneSplat(32, 24, 0.3);
+  EXPECT_GT(Lit(Render(narrow, AxisCamera(), playcanvas)), 0.01);
+  EXPECT_EQ(Lit(Render(narrow, AxisCamera(), limited)), 0.0);
+  EXPECT_EQ(Render(wider, AxisCamera(), limited).data,
+            Render(wider, AxisCamera(), playcanvas).data);
+  // Inria's 0.3 px^2 dilation alone makes every splat 1.55 px across.
+  RenderConventions inria_dilation;
+  inria_dilation.min_extent_px = 1;
+  EXPECT_EQ(Render(narrow, AxisCamera(), inria_dilation).data,
+            Render(narrow, AxisCamera(), RenderConventions()).data);
+}
+
+TEST(RenderConventions, FalloffsCutAndRenormaliseAt2_83Sigma) {
+  // A round splat of 2 px sigma on the axis: dilated, sigma^2 = 4.3 px^2.
+  // Pixels 4 and 6 px right of its centre lie at d^2 = 16 / 4.3 = 3.7
+  // (inside 2.83 sigma) and 36 / 4.3 = 8.4 (outside, where Inria still draws
+  // it).
+  const GaussianModel splat = OneSplat(32, 24, 2.0);
+  const double var = 4.3, near = 16 / var, far = 36 / var;
+  auto red = [&](Falloff falloff, int x) {
+    RenderConventions conventions;
+    conventions.falloff = falloff;
+    return Red(Render(splat, AxisCamera(), conventions), x, 24);
+  };
+  const double edge = std::exp(-4.0);
+  EXPECT_NEAR(red(Falloff::kInria, 36), 0.25 * std::exp(-0.5 * near), 1e-5);
+  EXPECT_NEAR(red(Falloff::kInria, 38), 0.25 * std::exp(-0.5 * far), 1e-5);
+  ASSERT_GT(0.5 * std::exp(-0.5 * far), 1 / 255.0);  // Inria draws it
+  EXPECT_NEAR(red(Falloff::kCutAt8, 36), 0.25 * std::exp(-0.5 * near), 1e-5);
+  EXPECT_EQ(red(Falloff::kCutAt8, 38), 0.f);
+  EXPECT_NEAR(red(Falloff::kNormalized, 36),
+              0.25 * (std::exp(-0.5 * near) - edge) / (1 - edge), 1e-5);
+  EXPECT_EQ(red(Falloff::kNormalized, 38), 0.f);
+  // The centre keeps the full opacity under every falloff.
+  for (Falloff falloff :
+       {Falloff::kInria, Falloff::kCutAt8, Falloff::kNormalized}) {
+    EXPECT_NEAR(red(falloff, 32), 0.25, 1e-5);
+  }
+}
+
 TEST(RenderConventions, FastForwardMatchesTheReferenceUnderEachNamedSet) {
   // Random scenes with means up to 30 px outside the frame, some splats
   // brighter than 1 and some wider than PlayCanvas' cap (17 px sigma in a
@@ -358,9 +410,13 @@ TEST(RenderConventions, BackwardRunsWithTheCullAndRefusesTheClampAndCap) {
   thin.dilation_px2 = 0.1;
   RenderConventions floor;
   floor.eigen_gap_floor = 0.1;
+  RenderConventions min_extent;
+  min_extent.min_extent_px = 1;
+  RenderConventions cut;
+  cut.falloff = Falloff::kCutAt8;
   for (const RenderConventions& conventions :
        {Web(), FindRenderConventions("playcanvas", "test").conventions, thin,
-        floor}) {
+        floor, min_extent, cut}) {
     Render(model, camera, conventions, &context);
     try {
       MakeCpuRasterizer()->Backward(model, *context, ones, &grads);
@@ -386,6 +442,11 @@ TEST(RenderConventions, OutOfRangeValuesAndOtherRenderersFailInOneLine) {
   bad = RenderConventions();
   bad.dilation_px2 = 0.5;
   EXPECT_THROW(Render(model, AxisCamera(), bad), Error);
+  for (double extent : {-1.0, double(INFINITY), double(NAN)}) {
+    bad = RenderConventions();
+    bad.min_extent_px = extent;
+    EXPECT_THROW(Render(model, AxisCamera(), bad), Error) << extent;
+  }
   for (double floor : {-0.1, 0.2, double(NAN)}) {
     bad = RenderConventions();
     bad.eigen_gap_floor = floor;
