@@ -756,6 +756,10 @@ CLAIMS = [
           span(*[probe(l, "held", BOTH) for l in BOTH_R2P2]), *[probe(l, "vs raw", BOTH) for l in BOTH_R2P2],
           grep("results/blind_designs/raw_train.log", r"^train: held-out views \(6\): PSNR ([\d.]+)"),
           *[probe(l, "PSNR", BOTH) for l in BOTH_R2P2]),
+    Claim("{} times faster than brute force on {}k points, {} threads (`point_init_benchmark`",
+          grep("results/benchmarks/point_init.txt", r"^threads 2: .* speed-up (\d+)x wall"),
+          grep("results/benchmarks/point_init.txt", r"^points: (\d+)000,"),
+          grep("results/benchmarks/point_init.txt", r"^threads (2):")),
 ]
 
 
