@@ -69,6 +69,11 @@ _SHOT_FIELDS = {
 }
 
 
+def curve(label, conventions):
+    """A file's mean single-view BER under one renderer's conventions in the simulated curve."""
+    return grep(VC + "curve.tsv", rf"^{re.escape(label)}\t{conventions}\tsingle views \(\d+\): BER mean ([\d.]+)%")
+
+
 def shots(tsv, screenshots, field, setting="auto"):
     return grep(tsv, rf"^{setting}\t{screenshots}\t" + _SHOT_FIELDS[field])
 
@@ -756,6 +761,13 @@ CLAIMS = [
           span(*[probe(l, "held", BOTH) for l in BOTH_R2P2]), *[probe(l, "vs raw", BOTH) for l in BOTH_R2P2],
           grep("results/blind_designs/raw_train.log", r"^train: held-out views \(6\): PSNR ([\d.]+)"),
           *[probe(l, "PSNR", BOTH) for l in BOTH_R2P2]),
+    Claim("| fern: the default {}% / {}% a view (gaussian-splats-3d / PlayCanvas), with `--jpeg_layer 90:0.5` {}% / {}%; the demo: "
+          "{}% / {}%, with the layer {}% / {}% | fern {} / {}, demo {} / {} dB |",
+          *[curve(f, c) for f in ("fern default", "fern jpeg_layer 90/0.5", "demo default", "demo jpeg_layer 90/0.5")
+            for c in ("web", "playcanvas")],
+          cell(F2B, (T38[0], "owner"), FROM_RAW), cell(F2B, ("both_seed0_t38j", "owner"), FROM_RAW),
+          grep(DEMO, r"watermarked vs the raw renders: ([\d.]+) dB"),
+          grep(VIEWER_T38J + "eval.txt", r"watermarked vs raw renders \| ([\d.]+)")),
     Claim("{} times faster than brute force on {}k points, {} threads (`point_init_benchmark`",
           grep("results/benchmarks/point_init.txt", r"^threads 2: .* speed-up (\d+)x wall"),
           grep("results/benchmarks/point_init.txt", r"^points: (\d+)000,"),
