@@ -175,8 +175,10 @@ void CapExtent(double cap, ProjectedGaussian* p) {
 bool FloorEigenGap(double floor, ProjectedGaussian* p) {
   double* cov = p->cov2d;
   const double mid = 0.5 * (cov[0] + cov[2]);
-  const double det = cov[0] * cov[2] - cov[1] * cov[1];
-  const double gap = std::sqrt(std::max(floor, mid * mid - det));
+  const double half_diff = 0.5 * (cov[0] - cov[2]);
+  const double disc = half_diff * half_diff + cov[1] * cov[1];
+  if (!std::isfinite(disc)) return false;
+  const double gap = std::sqrt(std::max(floor, disc));
   const double l1 = mid + gap, l2 = mid - gap;
   if (!(l2 > 0)) return false;
   double ex = cov[1], ey = l1 - cov[0];
@@ -463,9 +465,7 @@ void CpuRasterizer::Backward(const GaussianModel& model,
     Fail(
         "render backward: the base-colour clamp, extent cap, dilation, "
         "eigenvalue floor, minimum extent and falloff of render conventions "
-        "have no "
-        "backward pass (forward "
-        "only)");
+        "have no backward pass (forward only)");
   }
   std::vector<SplatGrad> splat_grads;
   RasterizeBackward(ctx.splats, ctx.bins, ctx.background, ctx.blend, grad_image,

@@ -29,8 +29,9 @@ struct RenderOptions {
   // image then has the rectangle's size and the cost scales with its area.
   PixelRect rect;
   // Another renderer's per-splat conventions (render_conventions.h); the
-  // default renders as Inria does. CPU only: Backward refuses a base-colour
-  // clamp, an extent cap or a dilation, the CUDA rasterizer any of them.
+  // default renders as Inria does. CPU only: Backward differentiates the
+  // centre cull, the SH cap and the unclamped Jacobian and refuses the rest;
+  // the CUDA rasterizer refuses any of them.
   RenderConventions conventions;
 };
 

@@ -63,8 +63,9 @@ struct RenderConventions {
   // normalize(b, lambda1 - a). Near-round splats (disc below this) are drawn
   // stretched along that axis (vertical when b = 0), and dropped when the
   // smaller eigenvalue falls to 0 or below: the viewer's eigenvalue floor,
-  // which Inria applies to the tile radius only (gaussian-splats-3d: 0.1;
-  // at most 0.1 so Inria's tiles still cover the ellipse). 0: none.
+  // which Inria applies to the tile radius only. A floor on the squared
+  // half gap disc, px^4 (gaussian-splats-3d: 0.1; at most 0.1 so Inria's
+  // tiles still cover the ellipse). 0: none.
   double eigen_gap_floor = 0;
   // Splats whose ellipse is narrower than this many pixels along its major
   // axis, 2 sqrt(2 lambda1) with lambda1 the larger eigenvalue of the
@@ -102,7 +103,8 @@ const NamedRenderConventions& FindRenderConventions(const std::string& name,
 
 // Fails in one line on values out of range: a centre cull neither 0 nor a
 // finite positive multiple, a negative extent cap, a dilation outside
-// [0, 0.3] other than -1.
+// [0, 0.3] other than -1, an eigenvalue floor outside [0, 0.1], a minimum
+// extent negative or not finite.
 void CheckRenderConventions(const RenderConventions& conventions);
 
 // Fails in one line when `conventions` are not the default: for renderers

@@ -126,8 +126,8 @@ int RunExtract(int argc, char** argv) {
   std::string conventions_name = "watergs";
   parser.Add("render_conventions", &conventions_name,
              "Read the views as another renderer shows them, the raw model's "
-             "too (CPU only): what that viewer's screenshot at the same "
-             "camera carries, without a browser. " +
+             "too (on the CPU whatever --device says): what that viewer's "
+             "screenshot at the same camera carries, without a browser. " +
                  RenderConventionsHelp());
   if (!parser.Parse(argc, argv)) return 0;
   const RenderConventions conventions =

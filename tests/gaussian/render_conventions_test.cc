@@ -6,8 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "gaussian/cpu_rasterizer.h"
 #include "gaussian/reference_rasterizer.h"
@@ -309,10 +311,48 @@ TEST(RenderConventions, FalloffsCutAndRenormaliseAt2_83Sigma) {
   EXPECT_NEAR(red(Falloff::kNormalized, 36),
               0.25 * (std::exp(-0.5 * near) - edge) / (1 - edge), 1e-5);
   EXPECT_EQ(red(Falloff::kNormalized, 38), 0.f);
+  // The cut sits at d^2 = 8: 6 px out, a splat of 2.063 px sigma (d^2 =
+  // 7.9) is drawn, one of 2.036 px (d^2 = 8.1) is not.
+  for (const auto& [sigma, inside] : {std::pair{2.063, true}, {2.036, false}}) {
+    RenderConventions cut;
+    cut.falloff = Falloff::kCutAt8;
+    const GaussianModel edge_splat = OneSplat(32, 24, sigma);
+    EXPECT_EQ(Red(Render(edge_splat, AxisCamera(), cut), 38, 24) > 0, inside)
+        << sigma;
+    EXPECT_GT(
+        Red(Render(edge_splat, AxisCamera(), RenderConventions()), 38, 24),
+        0.f);
+  }
   // The centre keeps the full opacity under every falloff.
   for (Falloff falloff :
        {Falloff::kInria, Falloff::kCutAt8, Falloff::kNormalized}) {
     EXPECT_NEAR(red(falloff, 32), 0.25, 1e-5);
+  }
+}
+
+TEST(RenderConventions, BlendWeightsFollowTheFalloff) {
+  // White splats on black: each pixel's value is its blending weights' sum,
+  // so the per-Gaussian weights add up to the image's sum under every
+  // falloff, and the cut ones lose weight.
+  const RenderCamera camera = RandomCamera(64, 48, 3);
+  SceneSpec spec;
+  spec.sh_degree = 0;
+  GaussianModel model = RandomScene(camera, spec, 17);
+  for (float& dc : model.sh_dc) dc = float(0.5 / kShC0);  // colour 1
+  double inria_total = 0;
+  for (Falloff falloff :
+       {Falloff::kInria, Falloff::kCutAt8, Falloff::kNormalized}) {
+    RenderOptions options;
+    options.conventions.falloff = falloff;
+    std::vector<double> weights(model.size(), 0.0);
+    MakeCpuRasterizer()->AccumulateBlendWeights(model, camera, options,
+                                                &weights);
+    double total = 0;
+    for (double w : weights) total += w;
+    const double lit = Lit(Render(model, camera, options.conventions)) / 3;
+    EXPECT_NEAR(total, lit, 1e-3 * lit) << int(falloff);
+    if (falloff == Falloff::kInria) inria_total = total;
+    if (falloff != Falloff::kInria) EXPECT_LT(total, inria_total);
   }
 }
 
@@ -331,20 +371,50 @@ TEST(RenderConventions, FastForwardMatchesTheReferenceUnderEachNamedSet) {
       model.sh_dc[3 * i] = float((1.4 - 0.5) / kShC0);
       for (int d = 0; d < 3; ++d) model.log_scales[3 * i + d] += 1.8f;
     }
-    for (const NamedRenderConventions& named : RenderConventionsRegistry()) {
-      RenderOptions options;
-      options.conventions = named.conventions;
-      ImageRGB image;
-      MakeCpuRasterizer()->Forward(model, camera, options, &image, nullptr);
-      const std::vector<double> reference =
-          ReferenceRender(ReferenceModel::From(model), camera, options);
-      ASSERT_EQ(image.data.size(), reference.size());
-      double worst = 0;
-      for (size_t k = 0; k < reference.size(); ++k) {
-        worst = std::max(worst, std::abs(double(image.data[k]) - reference[k]));
+    // And a scene of splats about a pixel wide and smaller, where the
+    // eigenvalue floor and the minimum size drop some.
+    SceneSpec tiny_spec = spec;
+    tiny_spec.min_scale = 0.0003, tiny_spec.max_scale = 0.008;
+    const GaussianModel tiny = RandomScene(camera, tiny_spec, 200 + seed);
+    for (const GaussianModel* scene :
+         std::vector<const GaussianModel*>{&model, &tiny}) {
+      for (const NamedRenderConventions& named : RenderConventionsRegistry()) {
+        RenderOptions options;
+        options.conventions = named.conventions;
+        ImageRGB image;
+        MakeCpuRasterizer()->Forward(*scene, camera, options, &image, nullptr);
+        const std::vector<double> reference =
+            ReferenceRender(ReferenceModel::From(*scene), camera, options);
+        ASSERT_EQ(image.data.size(), reference.size());
+        double worst = 0;
+        for (size_t k = 0; k < reference.size(); ++k) {
+          worst =
+              std::max(worst, std::abs(double(image.data[k]) - reference[k]));
+        }
+        EXPECT_LT(worst, 1e-5) << named.name << ", seed " << seed
+                               << (scene == &tiny ? ", tiny splats" : "");
       }
-      EXPECT_LT(worst, 1e-5) << named.name << ", seed " << seed;
     }
+    // The tiny scene loses splats under both viewers' sets: the drops are
+    // compared above, not only the ellipses.
+    RenderOptions plain_options;
+    std::unique_ptr<RenderContext> plain_context, web_context, pc_context;
+    ImageRGB scratch;
+    auto visible = [&](const RenderConventions& conventions,
+                       std::unique_ptr<RenderContext>* context) {
+      RenderOptions options;
+      options.conventions = conventions;
+      options.conventions.cull_centre_outside = 0;  // drops by size only
+      MakeCpuRasterizer()->Forward(tiny, camera, options, &scratch, context);
+      const auto& ctx = dynamic_cast<const CpuRenderContext&>(**context);
+      return std::count(ctx.visible.begin(), ctx.visible.end(), 1);
+    };
+    const auto all = visible(RenderConventions(), &plain_context);
+    EXPECT_LT(visible(Web(), &web_context), all) << seed;
+    EXPECT_LT(visible(FindRenderConventions("playcanvas", "test").conventions,
+                      &pc_context),
+              all)
+        << seed;
     // The sets differ from each other on these scenes.
     const ImageRGB plain = Render(model, camera, RenderConventions());
     EXPECT_NE(Render(model, camera, Web()).data, plain.data) << seed;
@@ -453,6 +523,24 @@ TEST(RenderConventions, OutOfRangeValuesAndOtherRenderersFailInOneLine) {
     EXPECT_THROW(Render(model, AxisCamera(), bad), Error) << floor;
   }
   EXPECT_NO_THROW(RequireDefaultConventions(RenderConventions(), "x"));
+  // Each field alone makes a set non-default, so renderers without
+  // conventions (CUDA) refuse it and extract reads through them.
+  std::vector<RenderConventions> single(8);
+  single[0].cull_centre_outside = 1.2;
+  single[1].max_sh_degree = 0;
+  single[2].clamp_base_color = true;
+  single[3].extent_cap_px = 1024;
+  single[4].dilation_px2 = 0.075;
+  single[5].unclamped_jacobian = true;
+  single[6].eigen_gap_floor = 0.1;
+  single[7].min_extent_px = 1;
+  RenderConventions falloff;
+  falloff.falloff = Falloff::kNormalized;
+  single.push_back(falloff);
+  for (size_t k = 0; k < single.size(); ++k) {
+    EXPECT_FALSE(single[k].IsDefault()) << k;
+    EXPECT_THROW(RequireDefaultConventions(single[k], "x"), Error) << k;
+  }
   try {
     RequireDefaultConventions(Web(), "the CUDA rasterizer");
     FAIL() << "non-default conventions were accepted";

@@ -36,13 +36,14 @@ std::vector<std::vector<float>> LogitsUnder(
     const GaussianModel& model, const Workspace& workspace,
     const RenderConventions& conventions) {
   std::unique_ptr<BitDecoder> decoder = LoadBitDecoder(kDecoder, Device::kCpu);
-  auto rasterizer = WithConventions(MakeCpuRasterizer(), conventions);
+  auto rasterizer = MakeCpuRasterizer();
+  RenderOptions options;
+  options.conventions = conventions;
   const WorkspaceViews views(workspace);
   std::vector<std::vector<float>> logits;
   for (size_t v = 0; v < views.NumViews(); ++v) {
     ImageRGB image;
-    rasterizer->Forward(model, views.Camera(v), RenderOptions{}, &image,
-                        nullptr);
+    rasterizer->Forward(model, views.Camera(v), options, &image, nullptr);
     for (float& value : image.data) value = std::clamp(value, 0.f, 1.f);
     logits.push_back(decoder->Logits(image));
   }
@@ -105,6 +106,10 @@ TEST(ExtractConventionsCli, ReadsTheViewsAsTheNamedRendererShowsThem) {
   const auto web = LogitsUnder(
       model, workspace, FindRenderConventions("web", "test").conventions);
   EXPECT_NE(plain, web);
+  EXPECT_NE(
+      plain,
+      LogitsUnder(model, workspace,
+                  FindRenderConventions("playcanvas", "test").conventions));
 
   // The owner's reading renders the raw model under the same conventions:
   // each logit is the suspect's minus the raw model's, both as web shows
