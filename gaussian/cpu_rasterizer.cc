@@ -142,6 +142,15 @@ bool CulledByCentre(const ProjectionCamera& cam, const double* mean2d,
   return !(std::abs(u) <= limit && std::abs(v) <= limit);
 }
 
+// The 2D covariance (xx, xy, yy)'s eigenvalues as mid +- r: mid the mean of
+// the diagonal, r^2 = ((xx - yy) / 2)^2 + xy^2 (no cancellation).
+struct Eigenvalues2d {
+  double mid, r2;
+  explicit Eigenvalues2d(const double* cov)
+      : mid(0.5 * (cov[0] + cov[2])),
+        r2(0.25 * (cov[0] - cov[2]) * (cov[0] - cov[2]) + cov[1] * cov[1]) {}
+};
+
 // Caps the splat's screen extent 2 sqrt(2 lambda) along each axis of its
 // ellipse at `cap` pixels: the eigenvalues of p->cov2d above cap^2 / 8 are
 // lowered to it (the eigenvectors kept), and the conic follows. The tiles
@@ -149,10 +158,9 @@ bool CulledByCentre(const ProjectionCamera& cam, const double* mean2d,
 void CapExtent(double cap, ProjectedGaussian* p) {
   const double limit = cap * cap / 8;
   double* cov = p->cov2d;
-  const double mid = 0.5 * (cov[0] + cov[2]);
-  const double half_diff = 0.5 * (cov[0] - cov[2]);
-  const double r = std::sqrt(half_diff * half_diff + cov[1] * cov[1]);
-  const double l1 = mid + r, l2 = mid - r;
+  const Eigenvalues2d eigen(cov);
+  const double r = std::sqrt(eigen.r2);
+  const double l1 = eigen.mid + r, l2 = eigen.mid - r;
   if (!(l1 > limit)) return;
   const double c1 = limit, c2 = std::min(l2, limit);
   if (!(r > 0)) {
@@ -174,12 +182,10 @@ void CapExtent(double cap, ProjectedGaussian* p) {
 // radius takes lambda1 with the same floor of 0.1.
 bool FloorEigenGap(double floor, ProjectedGaussian* p) {
   double* cov = p->cov2d;
-  const double mid = 0.5 * (cov[0] + cov[2]);
-  const double half_diff = 0.5 * (cov[0] - cov[2]);
-  const double disc = half_diff * half_diff + cov[1] * cov[1];
-  if (!std::isfinite(disc)) return false;
-  const double gap = std::sqrt(std::max(floor, disc));
-  const double l1 = mid + gap, l2 = mid - gap;
+  const Eigenvalues2d eigen(cov);
+  if (!std::isfinite(eigen.r2)) return false;
+  const double gap = std::sqrt(std::max(floor, eigen.r2));
+  const double l1 = eigen.mid + gap, l2 = eigen.mid - gap;
   if (!(l2 > 0)) return false;
   double ex = cov[1], ey = l1 - cov[0];
   const double norm = std::hypot(ex, ey);
@@ -196,10 +202,8 @@ bool FloorEigenGap(double floor, ProjectedGaussian* p) {
 // True when the ellipse of p->cov2d spans fewer than `min_extent` pixels
 // along its major axis, 2 sqrt(2 lambda1).
 bool NarrowerThan(double min_extent, const ProjectedGaussian& p) {
-  const double* cov = p.cov2d;
-  const double mid = 0.5 * (cov[0] + cov[2]);
-  const double half_diff = 0.5 * (cov[0] - cov[2]);
-  const double lambda1 = mid + std::hypot(half_diff, cov[1]);
+  const Eigenvalues2d eigen(p.cov2d);
+  const double lambda1 = eigen.mid + std::sqrt(eigen.r2);
   return !(2 * std::sqrt(2 * lambda1) >= min_extent);
 }
 
@@ -457,11 +461,7 @@ void CpuRasterizer::Backward(const GaussianModel& model,
         "render backward: gradient image or model does not match the "
         "forward pass");
   }
-  if (ctx.conventions.clamp_base_color || ctx.conventions.extent_cap_px > 0 ||
-      ctx.conventions.dilation_px2 >= 0 ||
-      ctx.conventions.eigen_gap_floor > 0 ||
-      ctx.conventions.min_extent_px > 0 ||
-      ctx.conventions.falloff != Falloff::kInria) {
+  if (ctx.conventions.ForwardOnly()) {
     Fail(
         "render backward: the base-colour clamp, extent cap, dilation, "
         "eigenvalue floor, minimum extent and falloff of render conventions "

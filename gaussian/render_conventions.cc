@@ -16,6 +16,11 @@ bool RenderConventions::IsDefault() const {
          falloff == Falloff::kInria;
 }
 
+bool RenderConventions::ForwardOnly() const {
+  return clamp_base_color || extent_cap_px > 0 || dilation_px2 >= 0 ||
+         eigen_gap_floor > 0 || min_extent_px > 0 || falloff != Falloff::kInria;
+}
+
 const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
   static const std::vector<NamedRenderConventions> registry = [] {
     RenderConventions web;

@@ -77,6 +77,9 @@ struct RenderConventions {
 
   // True when the rasterizer renders exactly as without conventions.
   bool IsDefault() const;
+  // True when a field without a backward pass is set (all but the centre
+  // cull, the SH cap and the unclamped Jacobian).
+  bool ForwardOnly() const;
 };
 
 // One named set of conventions: a renderer whose output the set imitates.

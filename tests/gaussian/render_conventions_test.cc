@@ -539,6 +539,8 @@ TEST(RenderConventions, OutOfRangeValuesAndOtherRenderersFailInOneLine) {
   single.push_back(falloff);
   for (size_t k = 0; k < single.size(); ++k) {
     EXPECT_FALSE(single[k].IsDefault()) << k;
+    // The cull, the SH cap and the unclamped Jacobian have a backward pass.
+    EXPECT_EQ(single[k].ForwardOnly(), k != 0 && k != 1 && k != 5) << k;
     EXPECT_THROW(RequireDefaultConventions(single[k], "x"), Error) << k;
   }
   try {

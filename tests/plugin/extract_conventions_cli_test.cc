@@ -60,14 +60,10 @@ std::vector<std::vector<float>> JsonLogits(const nlohmann::json& j) {
 
 TEST(ExtractConventionsCli, ReadsTheViewsAsTheNamedRendererShowsThem) {
   TempDir dir("extract_conventions");
-  testing::SyntheticModelOptions options;
-  options.num_images = 4;
-  options.width = 48;
-  options.height = 36;
   GaussianModel model;
   WorkspaceOptions wo;
-  wo.workspace_path =
-      testing::MakeRenderedWorkspace(dir / "ws", options, &model);
+  wo.workspace_path = testing::MakeRenderedWorkspace(
+      dir / "ws", testing::SmallSceneOptions(), &model);
   // Splats below a pixel: the web set's eigenvalue floor changes them.
   for (float& log_scale : model.log_scales) log_scale -= 2.5f;
   WritePly(dir / "model.ply", model);
