@@ -72,21 +72,25 @@ Splat MakeSplat(const ProjectedGaussian& p, float opacity) {
 }
 
 // Clamped colour of Gaussian i into s->color; returns the clamped-bit mask.
-// With `clamp_base`, the base colour 0.5 + C0 DC is clamped to [0, 1]
-// before the higher bands are added.
+// The base colour 0.5 + C0 DC is first stored as `conventions` say
+// (StoredBaseColor).
 uint8_t ShadeSplat(const GaussianModel& model, size_t i, int degree,
-                   bool clamp_base, const ProjectionCamera& cam, Splat* s) {
+                   const RenderConventions& conventions,
+                   const ProjectionCamera& cam, Splat* s) {
   const float* m = &model.means[3 * i];
   const double dir[3] = {m[0] - cam.center[0], m[1] - cam.center[1],
                          m[2] - cam.center[2]};
   double rgb[3];
   ShColorUnclamped(degree, &model.sh_dc[3 * i],
                    model.sh_rest.data() + i * model.sh_rest_stride(), dir, rgb);
-  if (clamp_base) {
+  if (conventions.clamp_base_color || conventions.base_opacity_8bit) {
     for (int ch = 0; ch < 3; ++ch) {
       const double base = kShC0 * model.sh_dc[3 * i + ch] + 0.5;
-      rgb[ch] += std::clamp(base, 0.0, 1.0) - base;
+      rgb[ch] += StoredBaseColor(base, conventions) - base;
     }
+  }
+  if (conventions.compact_work_buffer) {
+    for (int ch = 0; ch < 3; ++ch) rgb[ch] = CompactColor(rgb[ch], ch);
   }
   uint8_t clamped = 0;
   for (int ch = 0; ch < 3; ++ch) {
@@ -217,6 +221,17 @@ bool Redilate(double dilation, ProjectedGaussian* p) {
          std::isfinite(p->conic[1]) && std::isfinite(p->conic[2]);
 }
 
+// A splat's scales, rotation and opacity through PlayCanvas' compact work
+// buffer (CompactSplat) into the float arrays the projection reads.
+void PackCompact(const float* log_scale, const float* quat,
+                 float* packed_log_scale, float* packed_quat, double* opacity) {
+  double s[3] = {log_scale[0], log_scale[1], log_scale[2]};
+  double q[4] = {quat[0], quat[1], quat[2], quat[3]};
+  CompactSplat(s, q, opacity);
+  for (int k = 0; k < 3; ++k) packed_log_scale[k] = static_cast<float>(s[k]);
+  for (int k = 0; k < 4; ++k) packed_quat[k] = static_cast<float>(q[k]);
+}
+
 // Per-Gaussian results of the projection stage, indexed by Gaussian id.
 struct ProjectedModel {
   // Blending parameters; filled only where binned (no value-initialisation:
@@ -250,11 +265,16 @@ ProjectedModel ProjectModel(const GaussianModel& model,
   for (size_t i = 0; i < n; ++i) {
     const float* mean = &model.means[3 * i];
     const float* log_scale = &model.log_scales[3 * i];
+    const float* quat = &model.quats[4 * i];
+    double opacity = Sigmoid(model.opacity_logits[i]);
+    float packed_log_scale[3], packed_quat[4];
+    if (conventions.compact_work_buffer) {
+      PackCompact(log_scale, quat, packed_log_scale, packed_quat, &opacity);
+      log_scale = packed_log_scale, quat = packed_quat;
+    }
     if (!MayTouchTiles(cam, mean, log_scale, render_tiles)) continue;
     ProjectedGaussian p;
-    if (!ProjectForward(cam, mean, log_scale, &model.quats[4 * i], &p)) {
-      continue;
-    }
+    if (!ProjectForward(cam, mean, log_scale, quat, &p)) continue;
     if (CulledByCentre(cam, p.mean2d, conventions)) continue;
     if (conventions.dilation_px2 >= 0 &&
         !Redilate(conventions.dilation_px2, &p)) {
@@ -271,17 +291,18 @@ ProjectedModel ProjectModel(const GaussianModel& model,
     }
     if (Intersect(p.tiles, render_tiles).empty()) continue;
     ctx->visible[i] = 1;
-    const float opacity = static_cast<float>(Sigmoid(model.opacity_logits[i]));
+    const float stored_opacity =
+        static_cast<float>(StoredOpacity(opacity, conventions));
     Splat& splat = out.splats[i];
-    splat = MakeSplat(p, opacity);
+    splat = MakeSplat(p, stored_opacity);
     TileRange support;
-    if (!AlphaSupport(p, opacity, &splat, &support)) continue;
+    if (!AlphaSupport(p, stored_opacity, &splat, &support)) continue;
     out.tiles[i] = Intersect(Intersect(p.tiles, render_tiles), support);
     if (out.tiles[i].empty()) continue;
     out.binned[i] = 1;
     out.depth[i] = p.depth;
-    out.clamped[i] = ShadeSplat(model, i, ctx->active_sh_degree,
-                                conventions.clamp_base_color, cam, &splat);
+    out.clamped[i] =
+        ShadeSplat(model, i, ctx->active_sh_degree, conventions, cam, &splat);
   }
   return out;
 }
@@ -341,7 +362,9 @@ void CpuRasterizer::Forward(const GaussianModel& model,
       SortSplats(ProjectModel(model, render_tiles, ctx.get()), ctx.get());
   BinSplats(splat_tiles, render_tiles, &ctx->bins);
   RasterizeForward(ctx->splats, ctx->bins, rect, options.background, image,
-                   &ctx->blend, options.conventions.falloff);
+                   &ctx->blend,
+                   BlendMode{options.conventions.falloff,
+                             options.conventions.composite_8bit});
   if (context != nullptr) *context = std::move(ctx);
 }
 

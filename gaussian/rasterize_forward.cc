@@ -4,7 +4,9 @@
 #include "gaussian/rasterize_forward.h"
 
 #include <algorithm>
+#include <cmath>
 #include <type_traits>
+#include <vector>
 
 namespace watergs {
 namespace {
@@ -38,11 +40,46 @@ inline RowF FalloffAlpha(float opacity, const RowFalloff& f) {
   }
 }
 
+// One contribution kept for the back-to-front composite: the tile pixel
+// (row * 16 + column), the splat's index, its alpha there.
+struct Contribution {
+  uint32_t pixel, splat;
+  float alpha;
+};
+
+// A value in [0, 1] stored in an 8-bit channel (WebGL's float to unorm
+// conversion: clamp, then round to the nearest of 255 steps).
+inline float ToUnorm8(float v) {
+  return std::nearbyint(std::clamp(v, 0.f, 1.f) * 255.f) * (1.f / 255.f);
+}
+
+// Composites a tile's contributions (in front-to-back order) back to front
+// into 8-bit channels, as a WebGL viewer draws into its RGBA8 canvas with
+// premultiplied blending (ONE, ONE_MINUS_SRC_ALPHA): each splat's colour
+// times alpha clamped to [0, 1], each blend clamped and rounded. Writes the
+// composite over rgb[3][256] (which holds the background per pixel).
+void CompositeBackToFront8(const std::vector<Splat>& splats,
+                           const std::vector<Contribution>& contributions,
+                           float (*rgb)[kTileSize * kTileSize]) {
+  for (int ch = 0; ch < 3; ++ch) {
+    for (float& v : rgb[ch]) v = ToUnorm8(v);
+  }
+  for (auto it = contributions.rbegin(); it != contributions.rend(); ++it) {
+    const Splat& s = splats[it->splat];
+    for (int ch = 0; ch < 3; ++ch) {
+      float& dst = rgb[ch][it->pixel];
+      const float src = std::clamp(s.color[ch] * it->alpha, 0.f, 1.f);
+      dst = ToUnorm8(src + dst * (1.f - it->alpha));
+    }
+  }
+}
+
 // Blends one tile's list into the pixels of the tile that lie in `rect`.
 // on_weight(splat index, row of alpha * T) sees every blending weight: the
 // render passes a no-op (compiled away), the weight pass sums them, so both
-// take the same decisions.
-template <Falloff kFalloff, typename OnWeight>
+// take the same decisions. kComposite8: the contributions found front to
+// back are composited back to front in 8 bits (CompositeBackToFront8).
+template <Falloff kFalloff, bool kComposite8, typename OnWeight>
 void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
                uint32_t count, int tx, int ty, const PixelRect& rect,
                const std::array<float, 3>& background, ImageRGB* image,
@@ -68,6 +105,8 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
     active_count += in_y ? px.x1 - px.x0 : 0;
   }
   const int row_lo = px.y0 - base_y, row_hi = px.y1 - base_y;  // [lo, hi)
+  thread_local std::vector<Contribution> contributions;
+  if constexpr (kComposite8) contributions.clear();
   for (uint32_t j = 0; j < count && active_count > 0; ++j) {
     const Splat& s = splats[list[j]];
     const int r0 = std::max(row_lo, s.row_min - base_y);
@@ -88,6 +127,14 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
       const RowI contrib = ok & ~stop;
       const RowF w = contrib ? alpha * T[r] : RowF{};
       on_weight(list[j], w);
+      if constexpr (kComposite8) {
+        for (int c = 0; c < kN; ++c) {
+          if (contrib[c]) {
+            contributions.push_back(
+                {static_cast<uint32_t>(r * kN + c), list[j], alpha[c]});
+          }
+        }
+      }
       cr[r] += w * s.color[0];
       cg[r] += w * s.color[1];
       cb[r] += w * s.color[2];
@@ -98,6 +145,13 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
     }
     for (int c = 0; c < kN; ++c) active_count -= stopped[c];
   }
+  float composite[3][kN * kN];
+  if constexpr (kComposite8) {
+    for (int ch = 0; ch < 3; ++ch) {
+      std::fill_n(composite[ch], kN * kN, background[ch]);
+    }
+    CompositeBackToFront8(splats, contributions, composite);
+  }
   const PixelRect& out = state->rect;
   for (int y = px.y0; y < px.y1; ++y) {
     for (int x = px.x0; x < px.x1; ++x) {
@@ -105,9 +159,13 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
       const size_t k = static_cast<size_t>(y - out.y0) * out.width +
                        static_cast<size_t>(x - out.x0);
       float* rgb = image->At(x - out.x0, y - out.y0);
-      rgb[0] = cr[r][c] + T[r][c] * background[0];
-      rgb[1] = cg[r][c] + T[r][c] * background[1];
-      rgb[2] = cb[r][c] + T[r][c] * background[2];
+      if constexpr (kComposite8) {
+        for (int ch = 0; ch < 3; ++ch) rgb[ch] = composite[ch][r * kN + c];
+      } else {
+        rgb[0] = cr[r][c] + T[r][c] * background[0];
+        rgb[1] = cg[r][c] + T[r][c] * background[1];
+        rgb[2] = cb[r][c] + T[r][c] * background[2];
+      }
       state->final_T[k] = T[r][c];
       state->n_contrib[k] = static_cast<uint32_t>(last[r][c]);
     }
@@ -128,12 +186,24 @@ void DispatchFalloff(Falloff falloff, Blend&& blend) {
   }
 }
 
+// Calls BlendTile with the falloff and composite of `blend` compiled in.
+template <typename... Args>
+void BlendTileAs(const BlendMode& blend, Args&&... args) {
+  DispatchFalloff(blend.falloff, [&](auto falloff) {
+    if (blend.composite_8bit) {
+      BlendTile<decltype(falloff)::value, true>(std::forward<Args>(args)...);
+    } else {
+      BlendTile<decltype(falloff)::value, false>(std::forward<Args>(args)...);
+    }
+  });
+}
+
 }  // namespace
 
 void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
                       const PixelRect& rect,
                       const std::array<float, 3>& background, ImageRGB* image,
-                      BlendState* state, Falloff falloff) {
+                      BlendState* state, const BlendMode& blend) {
   *image = ImageRGB(rect.width, rect.height);
   state->rect = rect;
   const size_t pixels = static_cast<size_t>(rect.width) * rect.height;
@@ -146,12 +216,8 @@ void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
     const int tx = bins.range.x0 + k % range_w;
     const int ty = bins.range.y0 + k / range_w;
     const uint32_t begin = bins.offsets[k], end = bins.offsets[k + 1];
-    auto blend = [&](auto mode) {
-      BlendTile<decltype(mode)::value>(
-          splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
-          background, image, state, [](uint32_t, const RowF&) {});
-    };
-    DispatchFalloff(falloff, blend);
+    BlendTileAs(blend, splats, bins.ids.data() + begin, end - begin, tx, ty,
+                rect, background, image, state, [](uint32_t, const RowF&) {});
   }
 }
 
@@ -179,15 +245,11 @@ void AccumulateSplatWeights(const std::vector<Splat>& splats,
       const int tx = bins.range.x0 + k % range_w;
       const int ty = bins.range.y0 + k / range_w;
       const uint32_t begin = bins.offsets[k], end = bins.offsets[k + 1];
-      auto blend = [&](auto mode) {
-        BlendTile<decltype(mode)::value>(
-            splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
-            background, &image, &state,
-            [&local](uint32_t splat, const RowF& w) {
-              local[splat] += RowSum(w);
-            });
-      };
-      DispatchFalloff(falloff, blend);
+      BlendTileAs(BlendMode{falloff, false}, splats, bins.ids.data() + begin,
+                  end - begin, tx, ty, rect, background, &image, &state,
+                  [&local](uint32_t splat, const RowF& w) {
+                    local[splat] += RowSum(w);
+                  });
     }
 #pragma omp critical
     for (size_t k = 0; k < local.size(); ++k) (*splat_weights)[k] += local[k];

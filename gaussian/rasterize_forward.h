@@ -68,13 +68,21 @@ struct BlendState {
   std::vector<uint32_t> n_contrib;
 };
 
+// How the forward pass blends: the alpha falloff, and whether the pixel is
+// composited back to front in 8 bits instead of Inria's float sum front to
+// back (another renderer's conventions, render_conventions.h).
+struct BlendMode {
+  Falloff falloff = Falloff::kInria;
+  bool composite_8bit = false;
+};
+
 // Renders `rect` (inside the full frame, covered by bins.range) into `image`
-// (rect-sized) and fills `state`.
-// `falloff`: another renderer's alpha falloff (render_conventions.h).
+// (rect-sized) and fills `state` (the front-to-back pass's, whatever the
+// composite).
 void RasterizeForward(const std::vector<Splat>& splats, const TileBins& bins,
                       const PixelRect& rect,
                       const std::array<float, 3>& background, ImageRGB* image,
-                      BlendState* state, Falloff falloff = Falloff::kInria);
+                      BlendState* state, const BlendMode& blend = {});
 
 // Adds to (*splat_weights)[k] (one entry per splat, sized by the caller) the
 // sum over `rect`'s pixels of splat k's blending weight alpha * T, with the

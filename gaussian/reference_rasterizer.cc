@@ -9,6 +9,8 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <utility>
+#include <vector>
 
 #include "gaussian/sh.h"
 
@@ -34,14 +36,21 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
                               m.means[3 * i + 2]);
   const Eigen::Vector3d t = cam.R * world + cam.t;
   if (!(t.z() >= cam.near_plane && t.z() <= cam.far_plane)) return s;
-  Eigen::Quaterniond q(m.quats[4 * i], m.quats[4 * i + 1], m.quats[4 * i + 2],
-                       m.quats[4 * i + 3]);
+  double quat[4] = {m.quats[4 * i], m.quats[4 * i + 1], m.quats[4 * i + 2],
+                    m.quats[4 * i + 3]};
+  double log_scale[3] = {m.log_scales[3 * i], m.log_scales[3 * i + 1],
+                         m.log_scales[3 * i + 2]};
+  double opacity = 1.0 / (1.0 + std::exp(-m.opacity_logits[i]));
+  if (conventions.compact_work_buffer) {
+    CompactSplat(log_scale, quat, &opacity);
+  }
+  Eigen::Quaterniond q(quat[0], quat[1], quat[2], quat[3]);
   const Eigen::Matrix3d rot = q.squaredNorm() > 1e-24
                                   ? q.normalized().toRotationMatrix()
                                   : Eigen::Matrix3d::Identity();
   Eigen::Vector3d scale;
   for (int k = 0; k < 3; ++k) {
-    scale[k] = std::exp(std::clamp(m.log_scales[3 * i + k], -30.0, 20.0));
+    scale[k] = std::exp(std::clamp(log_scale[k], -30.0, 20.0));
   }
   const Eigen::Matrix3d sigma =
       rot * scale.asDiagonal() * scale.asDiagonal() * rot.transpose();
@@ -122,18 +131,17 @@ RefSplat ProjectRef(const ReferenceModel& m, size_t i, const RenderCamera& cam,
   s.ty1 = tile((py + radius + 15) / 16, grid_y);
   s.depth = t.z();
   s.falloff = conventions.falloff;
-  s.opacity = 1.0 / (1.0 + std::exp(-m.opacity_logits[i]));
+  s.opacity = StoredOpacity(opacity, conventions);
   const double dir[3] = {world.x() - cam.Center().x(),
                          world.y() - cam.Center().y(),
                          world.z() - cam.Center().z()};
   double rgb[3];
   ShColorUnclamped(degree, &m.sh_dc[3 * i],
                    m.sh_rest.data() + i * m.sh_rest_stride(), dir, rgb);
-  if (conventions.clamp_base_color) {
-    for (int ch = 0; ch < 3; ++ch) {
-      const double base = kShC0 * m.sh_dc[3 * i + ch] + 0.5;
-      rgb[ch] += std::clamp(base, 0.0, 1.0) - base;
-    }
+  for (int ch = 0; ch < 3; ++ch) {
+    const double base = kShC0 * m.sh_dc[3 * i + ch] + 0.5;
+    rgb[ch] += StoredBaseColor(base, conventions) - base;
+    if (conventions.compact_work_buffer) rgb[ch] = CompactColor(rgb[ch], ch);
   }
   s.color = Eigen::Vector3d(std::max(rgb[0], 0.0), std::max(rgb[1], 0.0),
                             std::max(rgb[2], 0.0));
@@ -150,6 +158,42 @@ double AlphaAt(const RefSplat& s, double x, double y, double* power) {
     falloff = (falloff - std::exp(-4.0)) / (1 - std::exp(-4.0));
   }
   return std::min(0.99, s.opacity * falloff);
+}
+
+// Inria's sum: colour * alpha * T front to back, the background times the
+// transmittance left.
+Eigen::Vector3d CompositeFrontToBack(
+    const std::vector<RefSplat>& splats,
+    const std::vector<std::pair<uint32_t, double>>& blended,
+    const Eigen::Vector3d& background) {
+  Eigen::Vector3d color = Eigen::Vector3d::Zero();
+  double T = 1;
+  for (const auto& [id, alpha] : blended) {
+    color += splats[id].color * alpha * T;
+    T *= 1 - alpha;
+  }
+  return color + T * background;
+}
+
+// A WebGL RGBA8 canvas' premultiplied blend, back to front: the background
+// stored in 8 bits, then dst = unorm8(min(1, colour * alpha) + dst (1 -
+// alpha)) per splat, unorm8(v) = round(255 clamp(v, 0, 1)) / 255.
+Eigen::Vector3d CompositeBackToFront8(
+    const std::vector<RefSplat>& splats,
+    const std::vector<std::pair<uint32_t, double>>& blended,
+    const Eigen::Vector3d& background) {
+  auto unorm8 = [](double v) {
+    return std::round(std::clamp(v, 0.0, 1.0) * 255) / 255;
+  };
+  Eigen::Vector3d dst = background.unaryExpr(unorm8);
+  for (auto it = blended.rbegin(); it != blended.rend(); ++it) {
+    const auto& [id, alpha] = *it;
+    for (int ch = 0; ch < 3; ++ch) {
+      const double src = std::min(1.0, splats[id].color[ch] * alpha);
+      dst[ch] = unorm8(src + dst[ch] * (1 - alpha));
+    }
+  }
+  return dst;
 }
 
 }  // namespace
@@ -189,13 +233,14 @@ std::vector<double> ReferenceRender(const ReferenceModel& model,
   for (int y = rect.y0; y < rect.y0 + rect.height; ++y) {
     for (int x = rect.x0; x < rect.x0 + rect.width; ++x) {
       const size_t p = size_t(y - rect.y0) * rect.width + (x - rect.x0);
-      Eigen::Vector3d color = Eigen::Vector3d::Zero();
+      // The pixel's contributions front to back: (splat, alpha).
+      std::vector<std::pair<uint32_t, double>> blended;
       double T = 1;
       if (replay) {
         for (uint32_t id : replay->contributors[p]) {
           double power;
           const double alpha = AlphaAt(splats[id], x, y, &power);
-          color += splats[id].color * alpha * T;
+          blended.emplace_back(id, alpha);
           T *= 1 - alpha;
         }
       } else {
@@ -208,14 +253,18 @@ std::vector<double> ReferenceRender(const ReferenceModel& model,
           const double alpha = AlphaAt(s, x, y, &power);
           if (power > 0 || alpha < 1.0 / 255.0) continue;
           if (T * (1 - alpha) < 1e-4) break;
-          color += s.color * alpha * T;
+          blended.emplace_back(id, alpha);
           T *= 1 - alpha;
           if (record) record->contributors[p].push_back(id);
         }
       }
-      for (int ch = 0; ch < 3; ++ch) {
-        image[3 * p + ch] = color[ch] + T * options.background[ch];
-      }
+      const Eigen::Vector3d background(
+          options.background[0], options.background[1], options.background[2]);
+      const Eigen::Vector3d color =
+          options.conventions.composite_8bit
+              ? CompositeBackToFront8(splats, blended, background)
+              : CompositeFrontToBack(splats, blended, background);
+      for (int ch = 0; ch < 3; ++ch) image[3 * p + ch] = color[ch];
     }
   }
   return image;

@@ -44,6 +44,11 @@ struct RenderConventions {
   // bands are added (gaussian-splats-3d stores it in 8 bits); Inria clamps
   // the final colour at 0 only, which watergs always does.
   bool clamp_base_color = false;
+  // The base colour and the opacity (after the sigmoid) are stored in 8
+  // bits as floor(255 v) clamped to [0, 255] (gaussian-splats-3d's splat
+  // buffer: both lose up to 1/255, half a level darker on average); implies
+  // the base colour's clamp.
+  bool base_opacity_8bit = false;
   // The splat's screen extent 2 sqrt(2 lambda) along each axis of its
   // ellipse (lambda an eigenvalue of the dilated 2D covariance; 2.83 sigma,
   // where PlayCanvas' quad ends) is capped at min(this, the frame's shorter
@@ -74,6 +79,20 @@ struct RenderConventions {
   // 0: none.
   double min_extent_px = 0;
   Falloff falloff = Falloff::kInria;
+  // Each pixel is composited back to front into 8-bit channels, as a WebGL
+  // viewer draws into its RGBA8 canvas with premultiplied blending (ONE,
+  // ONE_MINUS_SRC_ALPHA): a splat's colour times alpha is clamped to
+  // [0, 1] and every blend clamped and rounded to 1/255, so a bright splat
+  // behind others saturates at 1 before they cover it (Inria sums in float
+  // front to back and clamps once). The splats blended are Inria's (the same
+  // skips and early stop).
+  bool composite_8bit = false;
+  // Each splat passes through PlayCanvas' compact work buffer before it is
+  // drawn (CompactSplat): the scales on a log scale in 8 bits (256 steps
+  // over e^-12 .. e^9, a step of 8.6%), the rotation in 11/11/10 bits, the
+  // opacity rounded to 1/255, the colour after the SH clamped to [0, 4] in
+  // 11/11/10 bits. The scale steps move small splats' edges by up to 4%.
+  bool compact_work_buffer = false;
 
   // True when the rasterizer renders exactly as without conventions.
   bool IsDefault() const;
@@ -114,6 +133,24 @@ void CheckRenderConventions(const RenderConventions& conventions);
 // that implement none of them (`who` names it, e.g. "the CUDA rasterizer").
 void RequireDefaultConventions(const RenderConventions& conventions,
                                const std::string& who);
+
+// The base colour 0.5 + C0 DC as the renderer stores it: clamped to [0, 1]
+// (clamp_base_color) and floored to 1/255 (base_opacity_8bit), else as is.
+double StoredBaseColor(double base, const RenderConventions& conventions);
+
+// The opacity (after the sigmoid) as the renderer stores it: floored to
+// 1/255 (base_opacity_8bit), else as is.
+double StoredOpacity(double opacity, const RenderConventions& conventions);
+
+// One splat's scales, rotation and opacity after PlayCanvas' compact work
+// buffer (compact_work_buffer): log_scale[3] in natural log (a scale under
+// 1e-10 becomes e^-30), quat[4] (w, x, y, z), unnormalised in, unit out
+// with w >= 0; opacity after the sigmoid.
+void CompactSplat(double* log_scale, double* quat, double* opacity);
+
+// A colour channel (0 red .. 2 blue) after the SH through the compact work
+// buffer: clamped to [0, 4], 2047 steps for red and green, 1023 for blue.
+double CompactColor(double value, int channel);
 
 // The SH degree rendered: `active_sh_degree` (-1: the model's) capped by
 // the model's degree and the conventions' max_sh_degree.
