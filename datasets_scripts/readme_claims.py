@@ -239,6 +239,9 @@ H2B = H2B_DIR + "tables.md"
 LEGO_OWNER = ("owner_seed0", "owner_seed1", "owner_seed2")
 LEGO_BLIND = ("blind_seed0", "blind_seed1", "blind_seed2")
 LEGO_RAW = "results/nerf_synthetic_lego/raw.log"
+BONSAI = "results/mipnerf360_bonsai/tables.md"
+BONSAI_RAW = "results/mipnerf360_bonsai/raw.log"
+BONSAI_MODEL = "results/mipnerf360_bonsai/model_info.txt"
 LEGO_DEFAULT = "results/nerf_synthetic_lego/tables_default.md"  # today's default, session 33
 EMBED_1M = "results/embed_1m/synthetic_1m_defaults.log"
 FAST_LOADED = "results/testing/fast_tier_3feac90.txt"
@@ -249,6 +252,9 @@ NAMED_AS = {PAPER: r"\bpaper\b"}
 # Table 1, LLFF, "Ours": identity / GN / dropout / crop BER (%).
 PAPER_TABLE1_LLFF = grep(PAPER, r"\{LLFF\}.*?~ & Ours & \\textbf\{([\d.]+)\} & \\textbf\{([\d.]+)\} & "
                          r"\\textbf\{([\d.]+)\} & \\textbf\{([\d.]+)\}", re.S)
+# Table 1, Mip-NeRF 360, "Ours" (only identity in bold).
+PAPER_TABLE1_MIP = grep(PAPER, r"\{MIP-NeRF360\}.*?~ & Ours & \\textbf\{([\d.]+)\} & ([\d.]+) & ([\d.]+) & ([\d.]+)",
+                        re.S)
 # Held-out PSNR on LLFF: 3DGS (Table 2) minus WATER-GS at 48 bits (Table 5): the cost of the watermark.
 PAPER_COST_LLFF = difference(grep(PAPER, r"^\s*3DGS & N/A & ([\d.]+)"), grep(PAPER, r"^\s*48 bits & [\d.]+ & ([\d.]+)"))
 
@@ -583,6 +589,30 @@ CLAIMS = [
           *[cell(LEGO_DEFAULT, (r, "owner"), FROM_RAW) for r in BOTH_SEEDS],
           cell(LEGO_DEFAULT, ("both_seed0", "owner"), RAW_PSNR, 0),
           span(*[cell(LEGO_DEFAULT, (r, "owner"), RAW_PSNR, 1) for r in BOTH_SEEDS])),
+    Claim("| **Mip-NeRF 360 bonsai** (real: {} photos of a public 800x533 copy, reconstructed here: {} of {}; raw {} "
+          "Gaussians at {}x{}, {} dB held-out), the default, seeds 0-2 | as the owner {} / {} / {}% per held-out view "
+          "({} views), 48 free viewpoints {}-{}%; read blind: one held-out view {} / {} / {}%, free viewpoints {}-{}%; "
+          "Table 1 per image read blind, identity / gn / dropout / crop, seed 0: {} / {} / {} / {}%, every cell of the "
+          "three seeds at most {}% (the paper, Mip-NeRF 360, blind: {} / {} / {} / {}%); all {} cameras together, "
+          "blind: {} of 48 wrong on every seed; `--reading blind`, seed 0: {}% a held-out view at {} dB",
+          grep(BONSAI_MODEL, r"^Images: (\d+)"), grep(BONSAI_MODEL, r"^Registered images: (\d+)"),
+          grep(BONSAI_MODEL, r"^Images: (\d+)"), grep(BONSAI, r"^Raw model: (\d+) Gaussians"),
+          grep(BONSAI_RAW, r"^train: \d+ training views, \d+ held out, (\d+)x(\d+)"),
+          grep(BONSAI, r"held-out PSNR ([\d.]+) dB"),
+          *single_views(BONSAI, BOTH_SEEDS, "held-out mean", 0),
+          grep(BONSAI_RAW, r"^train: \d+ training views, (\d+) held out"),
+          span(*single_views(BONSAI, BOTH_SEEDS, "free mean", 0)),
+          *single_views(BONSAI, BOTH_SEEDS, "held-out mean", 0, "blind"),
+          span(*single_views(BONSAI, BOTH_SEEDS, "free mean", 0, "blind")),
+          *table1(BONSAI, ("both_seed0",), reading="blind"),
+          highest(*table1(BONSAI, BOTH_SEEDS, reading="blind")), PAPER_TABLE1_MIP,
+          cell(BONSAI, ("both_seed0",), "cameras"),
+          highest(*[cell(BONSAI, (r,), "bits wrong") for r in BOTH_SEEDS]),
+          cell(BONSAI, ("blind_seed0", "blind"), "held-out mean"), cell(BONSAI, ("blind_seed0", "blind"), FROM_RAW)),
+    Claim("| **{} / {} / {} dB** | {} -> {} / {} / {} | `download_bonsai_800.sh`",
+          *[cell(BONSAI, (r, "owner"), FROM_RAW) for r in BOTH_SEEDS],
+          cell(BONSAI, ("both_seed0", "owner"), RAW_PSNR, 0),
+          *[cell(BONSAI, (r, "owner"), RAW_PSNR, 1) for r in BOTH_SEEDS]),
     Claim("fly-through of the demo's watermarked file ({} frames between two held-out cameras, H.264 CRF 23 at {} kbit/s), "
           "read as the owner by `detect` | \"present\" from frame {}; {} of {} frames \"present\" alone (mean {}% a frame), "
           "all together {} of 48 wrong; the raw model's recording \"absent\" ({} of 48)",
