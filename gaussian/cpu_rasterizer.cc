@@ -270,7 +270,8 @@ ProjectedModel ProjectModel(const GaussianModel& model,
     float packed_log_scale[3], packed_quat[4];
     if (conventions.compact_work_buffer) {
       PackCompact(log_scale, quat, packed_log_scale, packed_quat, &opacity);
-      log_scale = packed_log_scale, quat = packed_quat;
+      log_scale = packed_log_scale;
+      quat = packed_quat;
     }
     if (!MayTouchTiles(cam, mean, log_scale, render_tiles)) continue;
     ProjectedGaussian p;

@@ -1,11 +1,13 @@
 // Forward blending. Each tile keeps its 256 pixels' state in stack arrays
-// (no heap allocation per pixel) and walks its splat list once; the inner
-// loop runs across a 16-pixel row so it maps onto one AVX-512 vector.
+// (no heap allocation per pixel; the 8-bit composite keeps its list in a
+// per-thread vector reused across tiles) and walks its splat list once; the
+// inner loop runs across a 16-pixel row so it maps onto one AVX-512 vector.
 #include "gaussian/rasterize_forward.h"
 
 #include <algorithm>
 #include <cmath>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace watergs {
@@ -47,17 +49,27 @@ struct Contribution {
   float alpha;
 };
 
+// This thread's list of a tile's contributions (reused across tiles).
+std::vector<Contribution>& TileContributions() {
+  thread_local std::vector<Contribution> contributions;
+  return contributions;
+}
+
 // A value in [0, 1] stored in an 8-bit channel (WebGL's float to unorm
-// conversion: clamp, then round to the nearest of 255 steps).
+// conversion: clamp, then the nearest of 255 steps, halves up as the
+// reference twin rounds them).
 inline float ToUnorm8(float v) {
-  return std::nearbyint(std::clamp(v, 0.f, 1.f) * 255.f) * (1.f / 255.f);
+  return std::floor(std::clamp(v, 0.f, 1.f) * 255.f + 0.5f) * (1.f / 255.f);
 }
 
 // Composites a tile's contributions (in front-to-back order) back to front
-// into 8-bit channels, as a WebGL viewer draws into its RGBA8 canvas with
-// premultiplied blending (ONE, ONE_MINUS_SRC_ALPHA): each splat's colour
-// times alpha clamped to [0, 1], each blend clamped and rounded. Writes the
-// composite over rgb[3][256] (which holds the background per pixel).
+// into 8-bit channels, as a WebGL viewer draws into its RGBA8 canvas:
+// PlayCanvas blends premultiplied (ONE, ONE_MINUS_SRC_ALPHA), so colour x
+// alpha is clamped to [0, 1]; gaussian-splats-3d blends (SRC_ALPHA,
+// ONE_MINUS_SRC_ALPHA) with the colour clamped, the same while colours stay
+// within [0, 1] as its SH-0, 8-bit base colours do. Each blend is clamped
+// and rounded. Writes the composite over rgb[3][256] (which holds the
+// background per pixel).
 void CompositeBackToFront8(const std::vector<Splat>& splats,
                            const std::vector<Contribution>& contributions,
                            float (*rgb)[kTileSize * kTileSize]) {
@@ -105,8 +117,11 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
     active_count += in_y ? px.x1 - px.x0 : 0;
   }
   const int row_lo = px.y0 - base_y, row_hi = px.y1 - base_y;  // [lo, hi)
-  thread_local std::vector<Contribution> contributions;
-  if constexpr (kComposite8) contributions.clear();
+  std::vector<Contribution>* contributions = nullptr;
+  if constexpr (kComposite8) {
+    contributions = &TileContributions();
+    contributions->clear();
+  }
   for (uint32_t j = 0; j < count && active_count > 0; ++j) {
     const Splat& s = splats[list[j]];
     const int r0 = std::max(row_lo, s.row_min - base_y);
@@ -130,7 +145,7 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
       if constexpr (kComposite8) {
         for (int c = 0; c < kN; ++c) {
           if (contrib[c]) {
-            contributions.push_back(
+            contributions->push_back(
                 {static_cast<uint32_t>(r * kN + c), list[j], alpha[c]});
           }
         }
@@ -150,7 +165,7 @@ void BlendTile(const std::vector<Splat>& splats, const uint32_t* list,
     for (int ch = 0; ch < 3; ++ch) {
       std::fill_n(composite[ch], kN * kN, background[ch]);
     }
-    CompositeBackToFront8(splats, contributions, composite);
+    CompositeBackToFront8(splats, *contributions, composite);
   }
   const PixelRect& out = state->rect;
   for (int y = px.y0; y < px.y1; ++y) {
@@ -245,11 +260,14 @@ void AccumulateSplatWeights(const std::vector<Splat>& splats,
       const int tx = bins.range.x0 + k % range_w;
       const int ty = bins.range.y0 + k / range_w;
       const uint32_t begin = bins.offsets[k], end = bins.offsets[k + 1];
-      BlendTileAs(BlendMode{falloff, false}, splats, bins.ids.data() + begin,
-                  end - begin, tx, ty, rect, background, &image, &state,
-                  [&local](uint32_t splat, const RowF& w) {
-                    local[splat] += RowSum(w);
-                  });
+      DispatchFalloff(falloff, [&](auto mode) {
+        BlendTile<decltype(mode)::value, false>(
+            splats, bins.ids.data() + begin, end - begin, tx, ty, rect,
+            background, &image, &state,
+            [&local](uint32_t splat, const RowF& w) {
+              local[splat] += RowSum(w);
+            });
+      });
     }
 #pragma omp critical
     for (size_t k = 0; k < local.size(); ++k) (*splat_weights)[k] += local[k];

@@ -1,6 +1,7 @@
 // Front-to-back alpha blending of depth-sorted splats over 16 x 16 tiles
-// (Inria semantics), parallel over tiles with OpenMP, SIMD across the 16
-// pixels of a tile row.
+// (Inria semantics; a web viewer's 8-bit back-to-front composite of the
+// same contributions on request), parallel over tiles with OpenMP, SIMD
+// across the 16 pixels of a tile row.
 #pragma once
 
 #include <array>

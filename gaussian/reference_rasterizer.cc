@@ -1,6 +1,9 @@
 // Reference rasterizer: one Gaussian at a time, one pixel at a time, in
 // double. Deliberately shares no projection or blending code with the fast
-// path (only the SH basis, whose constants sh_test checks on its own).
+// path (only the SH basis, whose constants sh_test checks on its own, and
+// the viewers' storage rules of render_conventions.h: StoredBaseColor,
+// StoredOpacity, CompactSplat, CompactColor, whose levels
+// render_conventions_test checks by hand).
 #include "gaussian/reference_rasterizer.h"
 
 #include <Eigen/Dense>
@@ -177,13 +180,13 @@ Eigen::Vector3d CompositeFrontToBack(
 
 // A WebGL RGBA8 canvas' premultiplied blend, back to front: the background
 // stored in 8 bits, then dst = unorm8(min(1, colour * alpha) + dst (1 -
-// alpha)) per splat, unorm8(v) = round(255 clamp(v, 0, 1)) / 255.
+// alpha)) per splat, unorm8(v) = floor(255 clamp(v, 0, 1) + 0.5) / 255.
 Eigen::Vector3d CompositeBackToFront8(
     const std::vector<RefSplat>& splats,
     const std::vector<std::pair<uint32_t, double>>& blended,
     const Eigen::Vector3d& background) {
   auto unorm8 = [](double v) {
-    return std::round(std::clamp(v, 0.0, 1.0) * 255) / 255;
+    return std::floor(std::clamp(v, 0.0, 1.0) * 255 + 0.5) / 255;
   };
   Eigen::Vector3d dst = background.unaryExpr(unorm8);
   for (auto it = blended.rbegin(); it != blended.rend(); ++it) {

@@ -46,10 +46,9 @@ const std::vector<NamedRenderConventions>& RenderConventionsRegistry() {
          "frame, the model's SH, colour clamped at 0"},
         {"web", web,
          "gaussian-splats-3d's defaults: splats centred outside 1.2x the "
-         "frame dropped, SH degree 0, base colour and opacity floored to "
-         "8 bits, "
-         "near-round splats' eigenvalues split by at least 2 sqrt(0.1) px^2, "
-         "each splat cut at 2.83 sigma, composited back to front in 8 "
+         "frame dropped, SH degree 0, base colour and opacity floored to 8 "
+         "bits, near-round splats' eigenvalues split by at least 2 sqrt(0.1) "
+         "px^2, each splat cut at 2.83 sigma, composited back to front in 8 "
          "bits"},
         {"playcanvas", playcanvas,
          "PlayCanvas': screen extent capped at min(1024, the frame's "
@@ -118,11 +117,9 @@ void RequireDefaultConventions(const RenderConventions& conventions,
   if (!conventions.IsDefault()) {
     Fail("render: " + who +
          " renders with watergs' conventions only (another renderer's were "
-         "asked: a centre cull, SH cap, colour clamp or 8-bit storage, extent "
-         "cap, dilation, "
-         "unclamped Jacobian, eigenvalue floor, minimum extent, falloff or "
-         "8-bit composite or compact packing): "
-         "use the CPU");
+         "asked: a centre cull, SH cap, colour clamp, 8-bit storage, extent "
+         "cap, dilation, unclamped Jacobian, eigenvalue floor, minimum "
+         "extent, falloff, 8-bit composite or compact packing): use the CPU");
   }
 }
 

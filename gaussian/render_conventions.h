@@ -1,16 +1,17 @@
 // Render conventions: the per-splat choices in which 3DGS renderers differ
 // from Inria's (and watergs') while reading the same file, applied by the
 // rasterizer when asked (RenderOptions::conventions). Web viewers cull
-// splats by their centre, evaluate fewer SH bands, store the base colour in
-// 8 bits, rebuild small splats' ellipses from floored eigenvalues and cap
-// the screen extent of large splats; watergs renders as Inria does. The
-// owner's reading of a screenshot (`detect`) renders its reference the way
-// the viewer did (results/viewers/README.md measures the gap:
-// gaussian-splats-3d against watergs 25.9 dB on the demo, 39.4 dB with the
-// cull, SH cap and clamp, 41.1 dB with the eigenvalue floor too; on fern,
-// whose splats are mostly a pixel wide, 28.0 dB without the floor and 43.8
-// with it). Each named set lives in one registry here, the only list of
-// their names.
+// splats by their centre, evaluate fewer SH bands, store colours, opacities
+// and shapes in few bits, rebuild small splats' ellipses from floored
+// eigenvalues, cap the screen extent of large splats, cut the falloff at
+// 2.83 sigma and composite back to front into an 8-bit canvas; watergs
+// renders as Inria does. The owner's reading of a screenshot (`detect`)
+// renders its reference the way the viewer did (results/viewers/ measures
+// the gap: on fern, whose splats are mostly a pixel wide,
+// gaussian-splats-3d's screenshots sit 26.4 dB from watergs' render and
+// 50.4 dB from the `web` set's, PlayCanvas' 21.3 and 47.2 dB from
+// `playcanvas`'). Each named set lives in one registry here, the only list
+// of their names.
 #pragma once
 
 #include <string>
@@ -41,8 +42,9 @@ struct RenderConventions {
   // -1: the model's (or RenderOptions::active_sh_degree).
   int max_sh_degree = -1;
   // The base colour (0.5 + C0 * DC) is clamped to [0, 1] before the higher
-  // bands are added (gaussian-splats-3d stores it in 8 bits); Inria clamps
-  // the final colour at 0 only, which watergs always does.
+  // bands are added (gaussian-splats-3d stores it in 8 bits: see
+  // base_opacity_8bit); Inria clamps the final colour at 0 only, which
+  // watergs always does.
   bool clamp_base_color = false;
   // The base colour and the opacity (after the sigmoid) are stored in 8
   // bits as floor(255 v) clamped to [0, 255] (gaussian-splats-3d's splat
@@ -80,18 +82,21 @@ struct RenderConventions {
   double min_extent_px = 0;
   Falloff falloff = Falloff::kInria;
   // Each pixel is composited back to front into 8-bit channels, as a WebGL
-  // viewer draws into its RGBA8 canvas with premultiplied blending (ONE,
-  // ONE_MINUS_SRC_ALPHA): a splat's colour times alpha is clamped to
-  // [0, 1] and every blend clamped and rounded to 1/255, so a bright splat
-  // behind others saturates at 1 before they cover it (Inria sums in float
-  // front to back and clamps once). The splats blended are Inria's (the same
-  // skips and early stop).
+  // viewer draws into its RGBA8 canvas: a splat's colour times alpha is
+  // clamped to [0, 1] (PlayCanvas' premultiplied ONE, ONE_MINUS_SRC_ALPHA;
+  // gaussian-splats-3d's SRC_ALPHA blend clamps the colour instead, the
+  // same while colours stay within [0, 1]) and every blend clamped and
+  // rounded to 1/255, so a bright splat behind others saturates at 1 before
+  // they cover it (Inria sums in float front to back and clamps once). The
+  // splats blended are Inria's: the same 1/255 skip, 0.99 cap and early
+  // stop, which the viewers do not have (a fringe of a few levels).
   bool composite_8bit = false;
   // Each splat passes through PlayCanvas' compact work buffer before it is
-  // drawn (CompactSplat): the scales on a log scale in 8 bits (256 steps
-  // over e^-12 .. e^9, a step of 8.6%), the rotation in 11/11/10 bits, the
-  // opacity rounded to 1/255, the colour after the SH clamped to [0, 4] in
-  // 11/11/10 bits. The scale steps move small splats' edges by up to 4%.
+  // drawn (CompactSplat): the scales on levels 1..255 of ln s over
+  // [-12, 9] (steps of 21/255, 8.6%; level 0: no size), the rotation in
+  // 11/11/10 bits, the opacity rounded to 1/255, the colour after the SH
+  // clamped to [0, 4] in 11/11/10 bits. The scale levels move every
+  // splat's extent by up to +-4.2%.
   bool compact_work_buffer = false;
 
   // True when the rasterizer renders exactly as without conventions.
@@ -145,7 +150,8 @@ double StoredOpacity(double opacity, const RenderConventions& conventions);
 // One splat's scales, rotation and opacity after PlayCanvas' compact work
 // buffer (compact_work_buffer): log_scale[3] in natural log (a scale under
 // 1e-10 becomes e^-30), quat[4] (w, x, y, z), unnormalised in, unit out
-// with w >= 0; opacity after the sigmoid.
+// with w >= 0 up to the packing's steps (a quaternion of norm <= 1e-12 is
+// left as it is); opacity after the sigmoid.
 void CompactSplat(double* log_scale, double* quat, double* opacity);
 
 // A colour channel (0 red .. 2 blue) after the SH through the compact work

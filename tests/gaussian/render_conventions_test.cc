@@ -268,8 +268,18 @@ TEST(RenderConventions, EightBitCompositeSaturatesABrightSplatBehind) {
   for (float v : single.data) {
     EXPECT_NEAR(v * 255, std::round(v * 255), 1e-3);
   }
+  // The background is stored first, halves up: 0.3 is 76.5 levels in float,
+  // 77 where no splat reaches.
+  RenderOptions grey;
+  grey.conventions = composite;
+  grey.background = {0.3f, 0.3f, 0.3f};
+  ImageRGB on_grey;
+  MakeCpuRasterizer()->Forward(OneSplat(32, 24, 2, 0.3), AxisCamera(), grey,
+                               &on_grey, nullptr);
+  EXPECT_NEAR(Red(on_grey, 0, 0), 77.0 / 255, 1e-6);
   // Without colours above 1 it differs from Inria's sum by the rounding
-  // alone: at most a level a blend, here two blends.
+  // alone: half a level at each of two roundings, shrunk by the blends
+  // after them, under a level in all.
   const GaussianModel dim = TwoStacked(0.2, 0.5, 0.7, 0.9);
   const ImageRGB inria = Render(dim, AxisCamera(), RenderConventions());
   const ImageRGB eight = Render(dim, AxisCamera(), composite);
@@ -289,6 +299,23 @@ TEST(RenderConventions, CompactWorkBufferPacksAsPlayCanvasDoes) {
   EXPECT_NEAR(log_scale[0], -12 + 100 * step, 1e-12);
   EXPECT_NEAR(log_scale[1], -12 + 40 * step, 1e-12);
   EXPECT_EQ(log_scale[2], -30);  // under 1e-10: level 0, no size
+  // Above 1e-10 but below e^-12 the lowest level is 1, above e^9 the top.
+  double edges[3] = {-15, 12, -12 + 255 * step};
+  double unit_quat[4] = {1, 0, 0, 0};
+  double full = 1;
+  CompactSplat(edges, unit_quat, &full);
+  EXPECT_NEAR(edges[0], -12 + step, 1e-12);
+  EXPECT_NEAR(edges[1], 9, 1e-12);
+  EXPECT_NEAR(edges[2], 9, 1e-12);
+  EXPECT_EQ(full, 1.0);
+  // The identity's p = 0 sits between levels 1023 and 1024 of 2047 (x, y)
+  // and 511 and 512 of 1023 (z): each rounds up, half a step off 0.
+  EXPECT_NEAR(
+      unit_quat[1],
+      std::sqrt(2 - 2 * std::pow(1.0 / 2047, 2) - std::pow(1.0 / 1023, 2)) / 1 *
+          (1.0 / 2047),
+      1e-12);
+  EXPECT_NEAR(unit_quat[3], unit_quat[1] * 2047.0 / 1023, 1e-12);
   // The rotation: unit, w >= 0, the input's (sign flipped) within the
   // 11/11/10-bit steps.
   const double norm = std::sqrt(0.81 + 0.01 + 0.09 + 0.04);
@@ -493,9 +520,21 @@ TEST(RenderConventions, FastForwardMatchesTheReferenceUnderEachNamedSet) {
     const GaussianModel tiny = RandomScene(camera, tiny_spec, 200 + seed);
     for (const GaussianModel* scene :
          std::vector<const GaussianModel*>{&model, &tiny}) {
+      std::vector<NamedRenderConventions> sets = RenderConventionsRegistry();
       for (const NamedRenderConventions& named : RenderConventionsRegistry()) {
+        if (!named.conventions.composite_8bit) continue;
+        // The storage rules alone, compared exactly below.
+        NamedRenderConventions float_sum = named;
+        float_sum.name += " without the 8-bit composite";
+        float_sum.conventions.composite_8bit = false;
+        sets.push_back(float_sum);
+      }
+      for (const NamedRenderConventions& named : sets) {
         RenderOptions options;
         options.conventions = named.conventions;
+        // Grey: 0.3 x 255 is a half level in float (76.5), where two
+        // rounding rules would part.
+        options.background = {0.3f, 0.5f, 0.1f};
         ImageRGB image;
         MakeCpuRasterizer()->Forward(*scene, camera, options, &image, nullptr);
         const std::vector<double> reference =
@@ -512,8 +551,8 @@ TEST(RenderConventions, FastForwardMatchesTheReferenceUnderEachNamedSet) {
                                   std::to_string(seed) +
                                   (scene == &tiny ? ", tiny splats" : "");
         if (named.conventions.composite_8bit) {
-          // Float and double round a blend to its 8-bit level alike but
-          // where they straddle a half level: one level, rarely.
+          // Float and double round a blend to its 8-bit level alike (halves
+          // up) but where they straddle a half level: one level, rarely.
           EXPECT_LT(worst, 1.0 / 255 + 1e-5) << where;
           EXPECT_LT(off_a_level, reference.size() / 100) << where;
         } else {
