@@ -71,7 +71,7 @@ _SHOT_FIELDS = {
 
 def curve(label, conventions):
     """A file's mean single-view BER under one renderer's conventions in the simulated curve."""
-    return grep(VC + "curve.tsv", rf"^{re.escape(label)}\t{conventions}\tsingle views \(\d+\): BER mean ([\d.]+)%")
+    return grep(VC33 + "curve.tsv", rf"^{re.escape(label)}\t{conventions}\tsingle views \(\d+\): BER mean ([\d.]+)%")
 
 
 def shots(tsv, screenshots, field, setting="auto"):
@@ -227,6 +227,8 @@ VIEWER_BOTH = "results/viewers/default_both/ber.tsv"
 VIEWER_T38J = "results/viewers/default_t38/jpeg_layer/"
 # The same screenshots read with the viewers' small-splat rules emulated (session 32).
 VC = "results/viewers/viewer_conventions/"
+# Read again with the viewers' 8-bit canvas and storage emulated (session 33): the README's figures.
+VC33 = VC + "session33/"
 FERN_T38_S31 = "results/viewers/default_t38/fern_t38/"  # before
 F2B_DIR = "results/real_llff/fern_252x189_both/"
 H2B_DIR = "results/real_llff/horns_252x189_both/"
@@ -725,36 +727,36 @@ CLAIMS = [
           "{}%, PlayCanvas {} of 12, {}%, the raw model's {} and {} \"absent\"; the held-out screenshots {} / {} dB "
           "from watergs' render under each viewer's conventions, so JPEG, not the renderer, costs most: watergs' own held-out "
           "renders at JPEG 90 read {}% a view (results/viewers/jpeg_reference/) | {} dB |",
-          shots(VC + "default/ber.tsv", "gs3d_wm", "present"),
-          shots(VC + "default/ber.tsv", "gs3d_wm", "mean"),
-          shots(VC + "default/ber.tsv", "playcanvas_wm", "present"),
-          shots(VC + "default/ber.tsv", "playcanvas_wm", "mean"),
-          highest(shots(VC + "default/ber.tsv", "gs3d_wm", "together"),
-                  shots(VC + "default/ber.tsv", "playcanvas_wm", "together")),
-          shots(VC + "default/ber.tsv", "gs3d_raw", "absent"),
-          shots(VC + "default/ber.tsv", "playcanvas_raw", "absent"),
-          shots(VC + "default_free/ber.tsv", "gs3d_wm", "registered"),
-          shots(VC + "default_free/ber.tsv", "gs3d_wm", "present"),
-          shots(VC + "default_free/ber.tsv", "gs3d_wm", "mean"),
-          shots(VC + "default_free/ber.tsv", "playcanvas_wm", "present"),
-          shots(VC + "default_free/ber.tsv", "playcanvas_wm", "mean"),
-          shots(VC + "default_free/ber.tsv", "gs3d_raw", "absent"),
-          shots(VC + "default_free/ber.tsv", "playcanvas_raw", "absent"),
-          grep(VC + "default/gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
-          grep(VC + "default/gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
+          shots(VC33 + "default/ber.tsv", "gs3d_wm", "present"),
+          shots(VC33 + "default/ber.tsv", "gs3d_wm", "mean"),
+          shots(VC33 + "default/ber.tsv", "playcanvas_wm", "present"),
+          shots(VC33 + "default/ber.tsv", "playcanvas_wm", "mean"),
+          highest(shots(VC33 + "default/ber.tsv", "gs3d_wm", "together"),
+                  shots(VC33 + "default/ber.tsv", "playcanvas_wm", "together")),
+          shots(VC33 + "default/ber.tsv", "gs3d_raw", "absent"),
+          shots(VC33 + "default/ber.tsv", "playcanvas_raw", "absent"),
+          shots(VC33 + "default_free/ber.tsv", "gs3d_wm", "registered"),
+          shots(VC33 + "default_free/ber.tsv", "gs3d_wm", "present"),
+          shots(VC33 + "default_free/ber.tsv", "gs3d_wm", "mean"),
+          shots(VC33 + "default_free/ber.tsv", "playcanvas_wm", "present"),
+          shots(VC33 + "default_free/ber.tsv", "playcanvas_wm", "mean"),
+          shots(VC33 + "default_free/ber.tsv", "gs3d_raw", "absent"),
+          shots(VC33 + "default_free/ber.tsv", "playcanvas_raw", "absent"),
+          grep(VC33 + "default/gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
+          grep(VC33 + "default/gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
           combine(lambda v: 100 * v[0], json_at(JPEG_REF + "default_t38_jpeg90.json", "owner", "view_ber", "mean")),
           grep(DEMO, r"watermarked vs the raw renders: ([\d.]+) dB")),
     Claim("| gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; 12 free viewpoints {} of 12 and {} of 12, "
           "{}% / {}%; watergs' own held-out renders "
           "at JPEG 90 {}% a view as the owner, {}% clean; read blind one held-out view {}%, as without the layer | {} dB |",
-          shots(VC + "jpeg_layer/ber.tsv", "gs3d_wm", "present"),
-          shots(VC + "jpeg_layer/ber.tsv", "gs3d_wm", "mean"),
-          shots(VC + "jpeg_layer/ber.tsv", "playcanvas_wm", "present"),
-          shots(VC + "jpeg_layer/ber.tsv", "playcanvas_wm", "mean"),
-          shots(VC + "jpeg_layer_free/ber.tsv", "gs3d_wm", "present"),
-          shots(VC + "jpeg_layer_free/ber.tsv", "playcanvas_wm", "present"),
-          shots(VC + "jpeg_layer_free/ber.tsv", "gs3d_wm", "mean"),
-          shots(VC + "jpeg_layer_free/ber.tsv", "playcanvas_wm", "mean"),
+          shots(VC33 + "jpeg_layer/ber.tsv", "gs3d_wm", "present"),
+          shots(VC33 + "jpeg_layer/ber.tsv", "gs3d_wm", "mean"),
+          shots(VC33 + "jpeg_layer/ber.tsv", "playcanvas_wm", "present"),
+          shots(VC33 + "jpeg_layer/ber.tsv", "playcanvas_wm", "mean"),
+          shots(VC33 + "jpeg_layer_free/ber.tsv", "gs3d_wm", "present"),
+          shots(VC33 + "jpeg_layer_free/ber.tsv", "playcanvas_wm", "present"),
+          shots(VC33 + "jpeg_layer_free/ber.tsv", "gs3d_wm", "mean"),
+          shots(VC33 + "jpeg_layer_free/ber.tsv", "playcanvas_wm", "mean"),
           scaled(100, json_at(VIEWER_T38J + "extract_jpeg90.json", "owner", "view_ber", "mean")),
           scaled(100, json_at(VIEWER_T38J + "extract_held.json", "owner", "view_ber", "mean")),
           scaled(100, json_at(VIEWER_T38J + "extract_held_blind.json", "view_ber", "mean")),
@@ -763,25 +765,26 @@ CLAIMS = [
           "{} of 3 and {} of 3, {}% / {}%, each set of 3 together \"present\" ({} of 48 wrong at most); at 12 free viewpoints the "
           "default {} of 12 and {} of 12 ({}% / {}%), the JPEG layer **{} of 12 and {} of 12 ({}% / {}%)**; the raw model's "
           "\"absent\"; the screenshots {} / {} dB from watergs' render under each viewer's conventions (the demo: {} / {}), since "
-          "the references follow the viewers' small-splat rules (gaussian-splats-3d's eigenvalue floor, PlayCanvas' minimum size, "
-          "both falloffs; before: {} / {} dB and {}% / {}% a held-out screenshot, [history](docs/history.md#real-web-viewers)) "
+          "the references follow the viewers' small-splat rules, 8-bit canvas and storage (gaussian-splats-3d's eigenvalue floor, "
+          "PlayCanvas' minimum size and compact buffer, both falloffs; before those: {} / {} dB and {}% / {}% a held-out screenshot, "
+          "[history](docs/history.md#real-web-viewers)) "
           "| {} / {} dB |",
-          shots(VC + "fern_t38/ber.tsv", "gs3d_wm", "present"),
-          shots(VC + "fern_t38/ber.tsv", "gs3d_wm", "mean"),
-          shots(VC + "fern_t38/ber.tsv", "playcanvas_wm", "present"),
-          shots(VC + "fern_t38/ber.tsv", "playcanvas_wm", "mean"),
-          shots(VC + "fern_t38j/ber.tsv", "gs3d_wm", "present"),
-          shots(VC + "fern_t38j/ber.tsv", "playcanvas_wm", "present"),
-          shots(VC + "fern_t38j/ber.tsv", "gs3d_wm", "mean"),
-          shots(VC + "fern_t38j/ber.tsv", "playcanvas_wm", "mean"),
-          highest(shots(VC + "fern_t38j/ber.tsv", "gs3d_wm", "together"),
-                  shots(VC + "fern_t38j/ber.tsv", "playcanvas_wm", "together")),
-          *[shots(d + "ber.tsv", v + "_wm", field) for d in (VC + "fern_t38_free/", VC + "fern_t38j_free/")
+          shots(VC33 + "fern_t38/ber.tsv", "gs3d_wm", "present"),
+          shots(VC33 + "fern_t38/ber.tsv", "gs3d_wm", "mean"),
+          shots(VC33 + "fern_t38/ber.tsv", "playcanvas_wm", "present"),
+          shots(VC33 + "fern_t38/ber.tsv", "playcanvas_wm", "mean"),
+          shots(VC33 + "fern_t38j/ber.tsv", "gs3d_wm", "present"),
+          shots(VC33 + "fern_t38j/ber.tsv", "playcanvas_wm", "present"),
+          shots(VC33 + "fern_t38j/ber.tsv", "gs3d_wm", "mean"),
+          shots(VC33 + "fern_t38j/ber.tsv", "playcanvas_wm", "mean"),
+          highest(shots(VC33 + "fern_t38j/ber.tsv", "gs3d_wm", "together"),
+                  shots(VC33 + "fern_t38j/ber.tsv", "playcanvas_wm", "together")),
+          *[shots(d + "ber.tsv", v + "_wm", field) for d in (VC33 + "fern_t38_free/", VC33 + "fern_t38j_free/")
             for field in ("present", "mean") for v in ("gs3d", "playcanvas")],
-          grep(VC + "fern_t38/gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
-          grep(VC + "fern_t38/gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
-          grep(VC + "default/gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
-          grep(VC + "default/gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
+          grep(VC33 + "fern_t38/gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
+          grep(VC33 + "fern_t38/gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
+          grep(VC33 + "default/gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
+          grep(VC33 + "default/gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
           grep(FERN_T38_S31 + "gap.tsv", r"^gs3d\twm\tweb\t([\d.]+)"),
           grep(FERN_T38_S31 + "gap.tsv", r"^playcanvas\twm\tplaycanvas\t([\d.]+)"),
           shots(FERN_T38_S31 + "ber.tsv", "gs3d_wm", "mean"),
