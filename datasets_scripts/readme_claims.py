@@ -498,7 +498,7 @@ CLAIMS = [
     Claim("2 cores: {} tests) and runs the other {} without COLMAP in {} s at `-j2` ({} skip without a GPU, saying why)",
           grep(FAST, r"^tests: \d+ in the tier, (\d+) labelled slow"), grep(FAST, r"^tests: (\d+) in the tier"),
           grep(FAST, r"^wall: (\d+) s"), count(FAST, r"\(Skipped\)$")),
-    Claim("(load average {} before, {} after, the previous timing having just ended; the tests' CPU time, {} s,",
+    Claim("(load average {} before, {} after; the tests' CPU time, {} s,",
           grep(FAST, r"^load average \(1, 5, 15 min\) before: ([\d.]+)"),
           grep(FAST, r"^load average \(1, 5, 15 min\) before: .*; after: ([\d.]+)"),
           grep(FAST, r"^cpu \(user \+ sys, all tests\): (\d+) s")),
