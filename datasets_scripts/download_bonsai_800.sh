@@ -11,29 +11,16 @@
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib_download.sh"
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-from_dir=""
-if [ "${1:-}" == "--from" ]; then
-  [ $# -ge 2 ] || die "--from needs a folder"
-  from_dir="$2"
-  shift 2
-  [ -d "$from_dir" ] || die "$from_dir: no such folder (--from)"
-fi
+from_option "$@"
+shift "$from_shift"
 out_dir="${1:-data/mipnerf360}"
 scene="$out_dir/bonsai_800"
 manifest="$root/results/mipnerf360_bonsai/photos.sha256"
 mkdir -p "$scene"
 if [ ! -f "$scene/photos.sha256" ]; then
   if [ -z "$from_dir" ]; then
-    require_tools git
     clone="$out_dir/.downloads/Bonsaidownload"
-    if [ ! -d "$clone/.git" ]; then
-      log "cloning github.com/EricXu23/Bonsaidownload (sparse: the top-level JPEGs)"
-      rm -rf "$clone"
-      git clone --filter=blob:none --no-checkout --depth 1 \
-        https://github.com/EricXu23/Bonsaidownload.git "$clone" || die "git clone failed"
-      git -C "$clone" sparse-checkout set --no-cone '/DSCF*.JPG'
-      git -C "$clone" checkout || die "git checkout of the sparse clone failed"
-    fi
+    sparse_clone https://github.com/EricXu23/Bonsaidownload.git "$clone" '/DSCF*.JPG'
     from_dir="$clone"
   fi
   scratch="$(mktemp -d "$scene/images.copying.XXXXXX")"

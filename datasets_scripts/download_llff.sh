@@ -25,13 +25,8 @@ source "$(dirname "${BASH_SOURCE[0]}")/lib_download.sh"
 
 readonly all_scenes=(fern flower fortress horns leaves orchids room trex)
 readonly gdrive_id="16VnMcF1KJYxN9QId6TClMsZRahHNMW5g"  # nerf_llff_data.zip
-from_dir=""
-if [ "${1:-}" == "--from" ]; then
-  [ $# -ge 2 ] || die "--from needs a folder"
-  from_dir="$2"
-  shift 2
-  [ -d "$from_dir" ] || die "$from_dir: no such folder (--from)"
-fi
+from_option "$@"
+shift "$from_shift"
 out_dir="${1:-data/llff}"
 [ $# -gt 0 ] && shift
 scenes=("$@")

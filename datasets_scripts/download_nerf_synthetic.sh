@@ -14,13 +14,8 @@ set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib_download.sh"
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bin="${WATERGS_BIN:-$root/build/plugin/watergs}"
-from_dir=""
-if [ "${1:-}" == "--from" ]; then
-  [ $# -ge 2 ] || die "--from needs a folder"
-  from_dir="$2"
-  shift 2
-  [ -d "$from_dir" ] || die "$from_dir: no such folder (--from)"
-fi
+from_option "$@"
+shift "$from_shift"
 out_dir="${1:-data/nerf_synthetic}"
 scene="$out_dir/lego"
 [ -x "$bin" ] || die "$bin: not built (cmake --build build, or set WATERGS_BIN)"
@@ -28,18 +23,10 @@ mkdir -p "$scene"
 
 if [ ! -f "$scene/source/transforms_test.json" ]; then
   if [ -z "$from_dir" ]; then
-    require_tools git
     clone="$out_dir/.downloads/CopyRNeRF-code"
-    if [ ! -d "$clone/.git" ]; then
-      log "cloning github.com/luo-ziyuan/CopyRNeRF-code (sparse: data/nerf_synthetic/lego)"
-      rm -rf "$clone"
-      git clone --filter=blob:none --no-checkout --depth 1 \
-        https://github.com/luo-ziyuan/CopyRNeRF-code.git "$clone" || die "git clone failed"
-      git -C "$clone" sparse-checkout set --no-cone '/data/nerf_synthetic/lego/*.json' \
-        '/data/nerf_synthetic/lego/train/r_*[0-9].png' '/data/nerf_synthetic/lego/test/r_*[0-9].png' \
-        '/data/nerf_synthetic/lego/val/r_*[0-9].png'
-      git -C "$clone" checkout || die "git checkout of the sparse clone failed"
-    fi
+    sparse_clone https://github.com/luo-ziyuan/CopyRNeRF-code.git "$clone" \
+      '/data/nerf_synthetic/lego/*.json' '/data/nerf_synthetic/lego/train/r_*[0-9].png' \
+      '/data/nerf_synthetic/lego/test/r_*[0-9].png' '/data/nerf_synthetic/lego/val/r_*[0-9].png'
     from_dir="$clone"
   fi
   source_dir=""

@@ -6,6 +6,31 @@
 log() { echo "$(basename "$0"): $*" >&2; }
 die() { log "error: $*"; exit 1; }
 
+# from_option ARGS...: a leading `--from DIR` (a local copy instead of the download): sets from_dir
+# (empty without it) and from_shift (how many arguments it took: shift "$from_shift" after the call).
+from_option() {
+  from_dir="" from_shift=0
+  if [ "${1:-}" == "--from" ]; then
+    [ $# -ge 2 ] || die "--from needs a folder"
+    [ -d "$2" ] || die "$2: no such folder (--from)"
+    from_dir="$2" from_shift=2
+  fi
+}
+
+# sparse_clone URL DIR PATTERN...: a blob-filtered, depth-1 clone of URL into DIR with only the paths
+# matching the patterns checked out (git sparse-checkout, no-cone); an existing DIR/.git is reused.
+sparse_clone() {
+  local url="$1" dir="$2"
+  shift 2
+  require_tools git
+  [ -d "$dir/.git" ] && return 0
+  log "cloning $url (sparse: $*)"
+  rm -rf "$dir"
+  git clone --filter=blob:none --no-checkout --depth 1 "$url" "$dir" || die "git clone failed"
+  git -C "$dir" sparse-checkout set --no-cone "$@"
+  git -C "$dir" checkout || die "git checkout of the sparse clone failed"
+}
+
 require_tools() {
   local tool
   for tool in "$@"; do

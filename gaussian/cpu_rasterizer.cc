@@ -266,10 +266,12 @@ ProjectedModel ProjectModel(const GaussianModel& model,
     const float* mean = &model.means[3 * i];
     const float* log_scale = &model.log_scales[3 * i];
     const float* quat = &model.quats[4 * i];
-    double opacity = Sigmoid(model.opacity_logits[i]);
     float packed_log_scale[3], packed_quat[4];
+    double packed_opacity = 0;
     if (conventions.compact_work_buffer) {
-      PackCompact(log_scale, quat, packed_log_scale, packed_quat, &opacity);
+      packed_opacity = Sigmoid(model.opacity_logits[i]);
+      PackCompact(log_scale, quat, packed_log_scale, packed_quat,
+                  &packed_opacity);
       log_scale = packed_log_scale;
       quat = packed_quat;
     }
@@ -292,6 +294,10 @@ ProjectedModel ProjectModel(const GaussianModel& model,
     }
     if (Intersect(p.tiles, render_tiles).empty()) continue;
     ctx->visible[i] = 1;
+    // The sigmoid only for splats that reach the frame (the hot path).
+    const double opacity = conventions.compact_work_buffer
+                               ? packed_opacity
+                               : Sigmoid(model.opacity_logits[i]);
     const float stored_opacity =
         static_cast<float>(StoredOpacity(opacity, conventions));
     Splat& splat = out.splats[i];
@@ -487,9 +493,10 @@ void CpuRasterizer::Backward(const GaussianModel& model,
   }
   if (ctx.conventions.ForwardOnly()) {
     Fail(
-        "render backward: the base-colour clamp, extent cap, dilation, "
-        "eigenvalue floor, minimum extent and falloff of render conventions "
-        "have no backward pass (forward only)");
+        "render backward: the base-colour clamp, 8-bit storage, extent cap, "
+        "dilation, eigenvalue floor, minimum extent, falloff, 8-bit "
+        "composite and compact packing of render conventions have no "
+        "backward pass (forward only)");
   }
   std::vector<SplatGrad> splat_grads;
   RasterizeBackward(ctx.splats, ctx.bins, ctx.background, ctx.blend, grad_image,

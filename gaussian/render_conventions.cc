@@ -148,17 +148,15 @@ double PackUnorm(double v, double lo, double hi, double steps) {
 }  // namespace
 
 void CompactSplat(double* log_scale, double* quat, double* opacity) {
-  // Scales: 255 levels of ln(s) over [-12, 9], level 0 kept for s < 1e-10.
-  constexpr double kLogMin = -12, kLogRange = 21;
+  // Scales: levels 1..255 of ln(s) over [-12, 9], level 0 kept for
+  // s < 1e-10 (no size).
+  constexpr double kLogMin = -12, kLogMax = 9;
   for (int k = 0; k < 3; ++k) {
-    if (!(log_scale[k] >= std::log(1e-10))) {
-      log_scale[k] = -30;
-      continue;
-    }
-    const double level =
-        std::clamp(std::floor((log_scale[k] - kLogMin) * 255 / kLogRange + 0.5),
-                   1.0, 255.0);
-    log_scale[k] = level * kLogRange / 255 + kLogMin;
+    log_scale[k] =
+        log_scale[k] >= std::log(1e-10)
+            ? std::max(PackUnorm(log_scale[k], kLogMin, kLogMax, 255),
+                       kLogMin + (kLogMax - kLogMin) / 255)
+            : -30;
   }
   // Rotation: p = (x, y, z) / sqrt(1 + w) of the unit quaternion with
   // w >= 0, each in [-1, 1] on 2047, 2047, 1023 steps; read back as
@@ -176,8 +174,9 @@ void CompactSplat(double* log_scale, double* quat, double* opacity) {
       d += p[k] * p[k];
     }
     quat[0] = 1 - d;
-    for (int k = 0; k < 3; ++k)
+    for (int k = 0; k < 3; ++k) {
       quat[k + 1] = std::sqrt(std::max(0.0, 2 - d)) * p[k];
+    }
   }
   *opacity = PackUnorm(*opacity, 0, 1, 255);
 }
