@@ -38,9 +38,10 @@ struct Config {
   int crop_size;
   bool full_frame_loss;
   bool densify;
-  // The rest of `watergs embed`'s defaults (issue 36): the owner's reading
-  // with margin 1, MSE 50 towards the input's renders, a fifth of the rates,
-  // half the iterations from free viewpoints.
+  // The rest of `watergs embed`'s defaults: the owner's reading with margin
+  // 1 plus the half-weight blind term (--reading both), MSE 50 towards the
+  // input's renders, a fifth of the rates, half the iterations from free
+  // viewpoints.
   bool embed_defaults = false;
 };
 
@@ -74,6 +75,7 @@ double RunConfig(const Bench& b, const Config& c) {
   o.densify = c.densify;
   if (c.embed_defaults) {
     o.owner_reading = true;
+    o.blind.weight = 0.5;
     o.margin = 1;
     o.fidelity_to_input = true;
     o.mse_weight = 50;
@@ -158,7 +160,13 @@ int RunSynthetic(int argc, char** argv) {
        false, true},
       {"4 layers, full frame, embed's defaults",
        "identity,gn:0.01,dropout:0.1,crop:0.1", 0, false, false, true},
-      // What trades time for fidelity at this size: the decoder's crop.
+      // What trades time for fidelity at this size: the decoder's crop;
+      // embed's default (--crop_size auto) picks it from the frame's size.
+      {"4 layers, crop auto, embed's defaults",
+       "identity,gn:0.01,dropout:0.1,crop:0.1", AutoCropSize(1280 * 800), false,
+       false, true},
+      {"4 layers, crop 512, embed's defaults",
+       "identity,gn:0.01,dropout:0.1,crop:0.1", 512, false, false, true},
       {"4 layers, crop 256, embed's defaults",
        "identity,gn:0.01,dropout:0.1,crop:0.1", 256, false, false, true},
       {"4 layers, crop 128, embed's defaults",

@@ -454,6 +454,10 @@ PixelRect RandomCrop(int crop_size, int width, int height,
   return rect;
 }
 
+int AutoCropSize(int64_t max_frame_pixels) {
+  return max_frame_pixels > kAutoCropMaxFramePixels ? kAutoCropSide : 0;
+}
+
 PixelRect Embedder::SampleRect(int width, int height) {
   if (options_.crop_size <= 0) return PixelRect{0, 0, width, height};
   return RandomCrop(options_.crop_size, width, height, &rng_);

@@ -407,4 +407,15 @@ class Embedder {
 PixelRect RandomCrop(int crop_size, int width, int height,
                      std::mt19937_64* rng);
 
+// `embed --crop_size auto`: whole frames up to kAutoCropMaxFramePixels (every
+// frame the project's tables use, fern's 504x378 among them); above it a
+// random kAutoCropSide square, so that an iteration's render, decoder and
+// backward pass stop growing with the frame (1M Gaussians at 1 MP within the
+// hour: results/embed_1m/README.md).
+constexpr int kAutoCropMaxFramePixels = 512 * 512;
+constexpr int kAutoCropSide = 384;
+// The crop side auto picks for frames of at most `max_frame_pixels` pixels
+// (0: whole frames).
+int AutoCropSize(int64_t max_frame_pixels);
+
 }  // namespace watergs

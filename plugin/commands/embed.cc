@@ -55,16 +55,16 @@ struct EmbedArgs {
   WorkspaceOptions workspace;
   // Defaults: the settings measured best on the demo at 2 cores
   // (docs/history.md, "The owner's reading", "The default serves both
-  // readers"): whole frames, half the iterations from free viewpoints, the
-  // owner's reading with a logit margin of 1 plus a half-weight blind term,
-  // an MSE term towards the input model's renders and a fifth of Inria's
-  // rates (the change stays small: 37 dB from the raw renders on the demo),
-  // no density control (the file keeps its size).
+  // readers"): whole frames (a crop above 512x512, --crop_size auto), half the
+  // iterations from free viewpoints, the owner's reading with a logit margin of
+  // 1 plus a half-weight blind term, an MSE term towards the input model's
+  // renders and a fifth of Inria's rates (the change stays small: 37 dB from
+  // the raw renders on the demo), no density control (the file keeps its size).
   int64_t iterations = 1500;
   double gamma = 0.03, beta = 0.2;
   std::string mask = "ALL";
   std::string distortions = "identity,gn:0.01,dropout:0.1,crop:0.1";
-  int crop_size = 0;
+  std::string crop_size = "auto";
   bool full_frame_loss = false;
   double free_view_fraction = 0.5;
   int free_view_neighbors = 0;
@@ -157,6 +157,38 @@ void ParseJpegLayer(const std::string& text, EmbedOptions* options) {
   options->jpeg_fraction = *fraction;
 }
 
+// "auto" (-1), or the crop's side in pixels (0: whole frames).
+int ParseCropSize(const std::string& text) {
+  if (text == "auto") return -1;
+  const std::optional<double> side = ParseFiniteDouble(text);
+  if (!side || *side != std::floor(*side) || *side < 0 || *side > 1e5) {
+    Fail("--crop_size: '" + Printable(text) +
+         "' is not auto or a side in pixels >= 0 (0 = whole frames)");
+  }
+  return static_cast<int>(*side);
+}
+
+// "crop 256", "whole frames", "crop 384 (auto: frames above 512x512)".
+std::string CropSummary(const std::string& text, int side) {
+  std::string what = side > 0 ? "crop " + std::to_string(side) : "whole frames";
+  if (text != "auto") return what;
+  return what + (side > 0 ? " (auto: frames above 512x512)"
+                          : " (auto: frames up to 512x512)");
+}
+
+// The crop side for `text` on these views: auto looks at the largest frame.
+int ResolveCropSize(const std::string& text, const TrainingViews& views,
+                    const std::vector<size_t>& train_views) {
+  const int side = ParseCropSize(text);
+  if (side >= 0) return side;
+  int64_t largest = 0;
+  for (size_t v : train_views) {
+    const RenderCamera camera = views.Camera(v);
+    largest = std::max<int64_t>(largest, int64_t(camera.width) * camera.height);
+  }
+  return AutoCropSize(largest);
+}
+
 void Validate(const EmbedArgs& a) {
   if (SamePath(a.input_path, a.output_path)) {
     Fail("embed: --output_path must differ from --input_path");
@@ -164,7 +196,7 @@ void Validate(const EmbedArgs& a) {
   if (a.iterations < 1) Fail("--iterations must be at least 1");
   if (!(a.gamma >= 0)) Fail("--gamma must be >= 0");
   if (!(a.beta >= 0 && a.beta <= 1)) Fail("--beta must be in [0, 1]");
-  if (a.crop_size < 0) Fail("--crop_size must be >= 0 (0 = whole frames)");
+  ParseCropSize(a.crop_size);
   if (!(a.stop_margin >= 0)) Fail("--stop_margin must be >= 0");
   if (a.patience < 0 || a.check_views < 0 || a.check_every < 1) {
     Fail("--patience, --check_views must be >= 0, --check_every >= 1");
@@ -338,7 +370,11 @@ int RunEmbed(int argc, char** argv) {
                  "more than 1% of the bits the plain render reads), or "
                  "auto:LIST (those candidates)");
   parser.Add("crop_size", &a.crop_size,
-             "Side of the random crop rendered per iteration (0 = frames)");
+             "Side of the random crop rendered per iteration, 0 = whole "
+             "frames, or auto: whole frames up to 512x512 pixels, a " +
+                 std::to_string(kAutoCropSide) +
+                 " crop above (the time per iteration stops growing with the "
+                 "frame)");
   parser.AddFlag("full_frame_loss", &a.full_frame_loss,
                  "Render whole frames for the image loss (decoder on crop)");
   parser.Add("free_view_fraction", &a.free_view_fraction,
@@ -470,7 +506,6 @@ int RunEmbed(int argc, char** argv) {
   } else if (a.distortions != "none") {
     options.distortions = ParseDistortionList(a.distortions);
   }
-  options.crop_size = a.crop_size;
   options.full_frame_image_loss = a.full_frame_loss;
   options.free_view_fraction = a.free_view_fraction;
   options.free_view_neighbors = a.free_view_neighbors;
@@ -574,12 +609,14 @@ int RunEmbed(int argc, char** argv) {
       uint64_t(a.seed) + 7919);
   const double extent = in.workspace->SceneExtent() * model_units;
   const RenderCamera first = views.Camera(train_views.front());
+  options.crop_size = ResolveCropSize(a.crop_size, views, train_views);
   std::printf(
       "embed: %zu Gaussians, %zu views %dx%d, %d-bit message %s, "
-      "distortions %s, crop %d, density control %s, %d threads, device %s\n",
+      "distortions %s, %s, density control %s, %d threads, device %s\n",
       ply.model.size(), train_views.size(), first.width, first.height,
       decoder->NumBits(), BitsToHex(message).c_str(), a.distortions.c_str(),
-      a.crop_size, options.densify ? "on" : "off", omp_get_max_threads(),
+      CropSummary(a.crop_size, options.crop_size).c_str(),
+      options.densify ? "on" : "off", omp_get_max_threads(),
       DeviceName(parser.device()).c_str());
 
   const GaussianModel raw = ply.model;
@@ -648,10 +685,10 @@ int RunEmbed(int argc, char** argv) {
                 choice->Summary(embedder.iteration()).c_str());
   }
   PrintTimings(embedder);
-  if (a.crop_size > 0 && !a.full_frame_loss) {
+  if (options.crop_size > 0 && !a.full_frame_loss) {
     auto rasterizer = MakeRasterizer(parser.device());
-    const int w = std::min(a.crop_size, first.width);
-    const int h = std::min(a.crop_size, first.height);
+    const int w = std::min(options.crop_size, first.width);
+    const int h = std::min(options.crop_size, first.height);
     const PixelRect rect{(first.width - w) / 2, (first.height - h) / 2, w, h};
     const double crop_s =
         RasterSeconds(*rasterizer, embedder.model(), first, rect, 3);

@@ -211,6 +211,17 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
   EXPECT_EQ(j["expected_bits"], "1010010111000011");
   EXPECT_NE(j["verdict"], "watermark present");
 
+  // --crop_size auto, the default, keeps whole frames this small.
+  const auto auto_crop = RunCommand(
+      base + " --message hex:a5c3 --output_path " +
+      std::string(dir / "wm_auto.ply") +
+      " --iterations 1 --densify off --check_views 1 --num_threads 2");
+  ASSERT_EQ(auto_crop.exit_code, 0) << auto_crop.output;
+  EXPECT_NE(
+      auto_crop.output.find(", whole frames (auto: frames up to 512x512),"),
+      std::string::npos)
+      << auto_crop.output;
+
   // Bad input: one line naming the problem, no output written.
   const std::string bad_out = dir / "bad.ply";
   ExpectOneLineError(
@@ -234,6 +245,10 @@ TEST(EmbedCli, KeepsTheLayoutReportsVerdictsAndRefusesBadInput) {
       RunCommand(base + " --message hex:a5c3 --densify maybe --output_path " +
                  bad_out),
       "--densify: on, off or auto");
+  ExpectOneLineError(
+      RunCommand(base + " --message hex:a5c3 --crop_size -8 --output_path " +
+                 bad_out),
+      "--crop_size: '-8' is not auto or a side in pixels");
   ExpectOneLineError(
       RunCommand(base + " --message hex:a5c3 --hard_views -2 --output_path " +
                  bad_out),

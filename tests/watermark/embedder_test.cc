@@ -55,6 +55,17 @@ TEST(ParamMask, ParsesGroupsAndRejectsUnknownNames) {
 // Each layer gets a run of its own, every iteration checked to have used
 // it: a run sampling all four in 6 iterations leaves a given layer undrawn
 // with probability (3/4)^6 = 18%, and a layer never drawn is never tested.
+TEST(AutoCropSize, WholeFramesUpTo512x512AndOneCropAbove) {
+  EXPECT_EQ(AutoCropSize(240 * 180), 0);  // the demo
+  EXPECT_EQ(AutoCropSize(504 * 378), 0);  // fern's and horns' tables
+  EXPECT_EQ(AutoCropSize(512 * 512), 0);
+  EXPECT_EQ(AutoCropSize(512 * 512 + 1), kAutoCropSide);
+  EXPECT_EQ(AutoCropSize(800 * 533), kAutoCropSide);  // bonsai's photos
+  EXPECT_EQ(AutoCropSize(1280 * 800), kAutoCropSide);
+  // The crop always sees less than any frame it is used on.
+  EXPECT_LT(int64_t(kAutoCropSide) * kAutoCropSide, kAutoCropMaxFramePixels);
+}
+
 TEST(Embedder, MaskKeepsFrozenGroupsBitIdentical) {
   Scene s = MakeScene(3, 32, 24);
   HiddenModel net(TinyDecoderConfig(8), false, 3);
