@@ -245,7 +245,8 @@ BONSAI = "results/mipnerf360_bonsai/tables.md"
 BONSAI_RAW = "results/mipnerf360_bonsai/raw.log"
 BONSAI_MODEL = "results/mipnerf360_bonsai/model_info.txt"
 LEGO_DEFAULT = "results/nerf_synthetic_lego/tables_default.md"  # today's default, session 33
-EMBED_1M = "results/embed_1m/synthetic_1m_defaults.log"
+EMBED_1M = "results/embed_1m/synthetic_1m_crop_curve.log"
+EMBED_1M_AUTO = "results/embed_1m/synthetic_1m_auto_memory.log"
 FAST_LOADED = "results/testing/fast_tier_3feac90.txt"
 # The paper's own figures, cited beside ours: read from its LaTeX source, which CI keeps beside the
 # clone (../shared/paper/); such a figure is named by the word "paper" beside it, not by its path.
@@ -553,11 +554,12 @@ CLAIMS = [
           probe("residual2_inria", "PSNR", BLIND), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR),
           difference(probe("residual2_inria", "PSNR", BLIND), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR))),
     Claim("| {} s an iteration (render {}, decoder {}, backward {}, Adam {} s): {} min for 1,500 iterations; "
-          "with a 256 px decoder crop {} s, {} min; peak memory {} GB",
+          "whole frames (`--crop_size 0`) {} s, {} min, the decoder {} s of it; peak memory {} GB, whole frames {} GB",
           combine(lambda v: [v[0] / 1e3, v[2] / 1e3, v[4] / 1e3, v[5] / 1e3, v[7] / 1e3, v[0] * 1.5 / 60],
-                  grep(EMBED_1M, r"^4 layers, full frame, embed's defaults" + r"\s+([\d.]+)" * 8)),
-          combine(lambda v: [v[0] / 1e3, v[0] * 1.5 / 60],
-                  grep(EMBED_1M, r"^4 layers, crop 256, embed's defaults\s+([\d.]+)")),
+                  grep(EMBED_1M, r"^4 layers, crop auto, embed's defaults" + r"\s+([\d.]+)" * 8)),
+          combine(lambda v: [v[0] / 1e3, v[0] * 1.5 / 60, v[4] / 1e3],
+                  grep(EMBED_1M, r"^4 layers, full frame, embed's defaults" + r"\s+([\d.]+)" * 5)),
+          scaled(1e-6, grep(EMBED_1M_AUTO, r"Maximum resident set size \(kbytes\): (\d+)")),
           scaled(1e-6, grep(EMBED_1M, r"Maximum resident set size \(kbytes\): (\d+)"))),
     Claim("| **NeRF-synthetic lego** (`transforms_importer`: {} training and {} test views at 200x200 on white, {} random "
           "initial points; raw {} Gaussians), seeds 0-2 | as the owner {} / {} / {}% per test view / 48 free viewpoints "

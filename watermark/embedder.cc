@@ -28,6 +28,29 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
+// The options two run signatures (JSON objects) disagree on, as
+// "crop_size 0 then, 384 now; ..." ("" when either is not an object).
+std::string SignatureDifferences(const std::string& then_text,
+                                 const std::string& now_text) {
+  const auto then = nlohmann::json::parse(then_text, nullptr, false);
+  const auto now = nlohmann::json::parse(now_text, nullptr, false);
+  if (!then.is_object() || !now.is_object()) return "";
+  auto value_in = [](const nlohmann::json& j, const std::string& key) {
+    return j.contains(key) ? j[key].dump() : std::string("unset");
+  };
+  std::string out;
+  nlohmann::json keys = then;
+  keys.update(now);
+  for (const auto& item : keys.items()) {
+    const std::string then_value = value_in(then, item.key());
+    const std::string now_value = value_in(now, item.key());
+    if (then_value == now_value) continue;
+    if (!out.empty()) out += "; ";
+    out += item.key() + " " + then_value + " then, " + now_value + " now";
+  }
+  return out;
+}
+
 int CountBitErrors(const std::vector<float>& logits, const Bits& message) {
   // Logit > 0 reads bit 1.
   int errors = 0;
@@ -974,7 +997,10 @@ void Embedder::SaveCheckpoint(const std::string& path) const {
 void Embedder::Resume(const std::string& path) {
   TrainingCheckpoint c = ReadCheckpoint(path);
   if (c.run_signature != RunSignature()) {
-    FailAt(path, "checkpoint was written by an embed run with other options");
+    const std::string differences =
+        SignatureDifferences(c.run_signature, RunSignature());
+    FailAt(path, "checkpoint was written by an embed run with other options" +
+                     (differences.empty() ? "" : " (" + differences + ")"));
   }
   if (c.model.sh_degree != model_.sh_degree) {
     FailAt(path, "checkpoint SH degree differs from the input model's");

@@ -4,6 +4,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +15,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "gaussian/device.h"
@@ -157,15 +159,18 @@ void ParseJpegLayer(const std::string& text, EmbedOptions* options) {
   options->jpeg_fraction = *fraction;
 }
 
-// "auto" (-1), or the crop's side in pixels (0: whole frames).
+// "auto" (-1), or the crop's side in whole pixels (0: whole frames).
 int ParseCropSize(const std::string& text) {
   if (text == "auto") return -1;
-  const std::optional<double> side = ParseFiniteDouble(text);
-  if (!side || *side != std::floor(*side) || *side < 0 || *side > 1e5) {
+  int side = -1;
+  const char* end = text.data() + text.size();
+  const auto [stop, error] = std::from_chars(text.data(), end, side);
+  if (text.empty() || error != std::errc() || stop != end || side < 0 ||
+      side > 100000) {
     Fail("--crop_size: '" + Printable(text) +
-         "' is not auto or a side in pixels >= 0 (0 = whole frames)");
+         "' is not auto or a side in pixels, 0..100000 (0 = whole frames)");
   }
-  return static_cast<int>(*side);
+  return side;
 }
 
 // "crop 256", "whole frames", "crop 384 (auto: frames above 512x512)".
@@ -371,7 +376,8 @@ int RunEmbed(int argc, char** argv) {
                  "auto:LIST (those candidates)");
   parser.Add("crop_size", &a.crop_size,
              "Side of the random crop rendered per iteration, 0 = whole "
-             "frames, or auto: whole frames up to 512x512 pixels, a " +
+             "frames, or auto: whole frames of up to 262,144 pixels "
+             "(512x512), a " +
                  std::to_string(kAutoCropSide) +
                  " crop above (the time per iteration stops growing with the "
                  "frame)");

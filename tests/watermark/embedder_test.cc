@@ -52,9 +52,6 @@ TEST(ParamMask, ParsesGroupsAndRejectsUnknownNames) {
   EXPECT_THROW(ParseParamMask(""), Error);
 }
 
-// Each layer gets a run of its own, every iteration checked to have used
-// it: a run sampling all four in 6 iterations leaves a given layer undrawn
-// with probability (3/4)^6 = 18%, and a layer never drawn is never tested.
 TEST(AutoCropSize, WholeFramesUpTo512x512AndOneCropAbove) {
   EXPECT_EQ(AutoCropSize(240 * 180), 0);  // the demo
   EXPECT_EQ(AutoCropSize(504 * 378), 0);  // fern's and horns' tables
@@ -66,6 +63,9 @@ TEST(AutoCropSize, WholeFramesUpTo512x512AndOneCropAbove) {
   EXPECT_LT(int64_t(kAutoCropSide) * kAutoCropSide, kAutoCropMaxFramePixels);
 }
 
+// Each layer gets a run of its own, every iteration checked to have used
+// it: a run sampling all four in 6 iterations leaves a given layer undrawn
+// with probability (3/4)^6 = 18%, and a layer never drawn is never tested.
 TEST(Embedder, MaskKeepsFrozenGroupsBitIdentical) {
   Scene s = MakeScene(3, 32, 24);
   HiddenModel net(TinyDecoderConfig(8), false, 3);
@@ -606,6 +606,21 @@ TEST(Embedder, TargetPsnrSteersTheBlindWeightByTheChecksDistanceFromTheInput) {
   EXPECT_DOUBLE_EQ(resumed.blind_weight(), 0.5);
   resumed.Resume(path);
   EXPECT_DOUBLE_EQ(resumed.blind_weight(), low->blind_weight());
+  // Another crop is another run: the refusal names what differs.
+  EmbedOptions cropped = steered;
+  cropped.crop_size = steered.crop_size + 16;
+  Embedder other(cropped, s.views, s.train, s.model, 3.0, &decoder, message,
+                 MakeCpuRasterizer());
+  try {
+    other.Resume(path);
+    ADD_FAILURE() << "resumed a checkpoint of another crop";
+  } catch (const Error& e) {
+    const std::string expected = "(crop_size " +
+                                 std::to_string(steered.crop_size) + " then, " +
+                                 std::to_string(cropped.crop_size) + " now)";
+    EXPECT_NE(std::string(e.what()).find(expected), std::string::npos)
+        << e.what();
+  }
   std::remove(path.c_str());
   // A budget needs a blind term to steer.
   steered.blind.weight = 0;
