@@ -17,7 +17,6 @@
 
 #include "gaussian/util/error.h"
 #include "gaussian/util/file_util.h"
-#include "gaussian/util/lru_cache.h"
 #include "plugin/image_file.h"
 #include "plugin/image_header.h"
 #include "plugin/reconstruction_io.h"
@@ -31,19 +30,30 @@ namespace fs = std::filesystem;
 // cameras (few cameras are distorted at once, so maps are kept per camera).
 class ImageLoader {
  public:
-  explicit ImageLoader(size_t capacity_bytes) : images_(capacity_bytes) {}
+  explicit ImageLoader(size_t capacity_bytes) : capacity_(capacity_bytes) {}
 
-  // The cached view, or false.
+  // The cached view, or nullptr-equivalent false.
   bool Find(size_t view, ImageRGB* image) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const ImageRGB* cached = images_.Find(view);
-    if (cached == nullptr) return false;
-    *image = *cached;
+    const auto it = entries_.find(view);
+    if (it == entries_.end()) return false;
+    order_.splice(order_.begin(), order_, it->second.position);
+    *image = it->second.image;
     return true;
   }
   void Insert(size_t view, const ImageRGB& image) {
+    const size_t bytes = image.data.size() * sizeof(float);
     std::lock_guard<std::mutex> lock(mutex_);
-    images_.Insert(view, image, image.data.size() * sizeof(float));
+    if (bytes > capacity_ || entries_.count(view)) return;
+    while (used_ + bytes > capacity_ && !order_.empty()) {
+      const size_t oldest = order_.back();
+      used_ -= entries_.at(oldest).image.data.size() * sizeof(float);
+      entries_.erase(oldest);
+      order_.pop_back();
+    }
+    order_.push_front(view);
+    entries_[view] = {image, order_.begin()};
+    used_ += bytes;
   }
   // Warp map from `source` to `target`, computed once per source camera.
   // At most kMaxMaps are kept (oldest dropped first): COLMAP models often
@@ -66,8 +76,17 @@ class ImageLoader {
   }
 
  private:
+  struct Entry {
+    // The decoded view.
+    ImageRGB image;
+    // Its place in order_ (most recent first).
+    std::list<size_t>::iterator position;
+  };
   std::mutex mutex_;
-  LruCache<size_t, ImageRGB> images_;
+  size_t capacity_;
+  size_t used_ = 0;
+  std::list<size_t> order_;
+  std::unordered_map<size_t, Entry> entries_;
   // Keyed by source camera id and size (images_<k> files may differ by a
   // pixel).
   using MapKey = std::tuple<camera_t, uint64_t, uint64_t>;

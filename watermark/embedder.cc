@@ -143,7 +143,6 @@ Embedder::Embedder(const EmbedOptions& options, const TrainingViews& views,
       adam_(options.adam, scene_extent),
       loss_(options.beta),
       rng_(options.seed) {
-  input_renders_ = decltype(input_renders_)(options_.input_render_cache_bytes);
   if (train_views_.empty()) Fail("embed: no training views");
   for (size_t v : train_views_) {
     if (v >= views_.NumViews()) Fail("embed: view index out of range");
@@ -383,10 +382,11 @@ std::shared_ptr<const ImageRGB> Embedder::RenderInput(
 }
 
 std::shared_ptr<const ImageRGB> Embedder::InputRender(size_t view) {
-  if (const auto* cached = input_renders_.Find(view)) return *cached;
-  std::shared_ptr<const ImageRGB> render = RenderInput(views_.Camera(view));
-  input_renders_.Insert(view, render, render->data.size() * sizeof(float));
-  return render;
+  if (input_renders_.empty()) input_renders_.resize(views_.NumViews());
+  if (!input_renders_[view]) {
+    input_renders_[view] = RenderInput(views_.Camera(view));
+  }
+  return input_renders_[view];
 }
 
 LossTerms Embedder::ImageLoss(const ImageRGB& rendered, const ImageRGB& truth,

@@ -22,7 +22,6 @@
 #include "gaussian/loss.h"
 #include "gaussian/rasterizer.h"
 #include "gaussian/trainer.h"
-#include "gaussian/util/lru_cache.h"
 #include "watermark/bit_decoder.h"
 #include "watermark/decoder.h"
 #include "watermark/device_embedding_step.h"
@@ -149,11 +148,6 @@ struct EmbedOptions {
   int64_t checkpoint_every = 0;
   // Draw a progress bar on stderr.
   bool show_progress = false;
-  // Bytes of the input model's renders kept for reuse, least recently used
-  // dropped first and rendered again when needed (the same pixels): at 1 MP
-  // a render takes 12 MB, and a workspace of hundreds of views would hold
-  // gigabytes of them.
-  size_t input_render_cache_bytes = size_t(512) << 20;
 };
 
 // Defaults for fine-tuning: Inria's rates with the position rate starting
@@ -358,7 +352,7 @@ class Embedder {
   GaussianModel model_;
   // The input model, kept when free-view iterations render targets from it.
   GaussianModel input_model_;
-  LruCache<size_t, std::shared_ptr<const ImageRGB>> input_renders_{0};
+  std::vector<std::shared_ptr<const ImageRGB>> input_renders_;
   std::vector<std::shared_ptr<const std::vector<float>>> reference_logits_;
   // The same through the JPEG layer's round trip (jpeg_quality).
   std::vector<std::shared_ptr<const std::vector<float>>> jpeg_reference_logits_;

@@ -807,29 +807,6 @@ TEST(Embedder, SimulatesOnlyTheDistortionLayersTheCheckViewsAreShortOf) {
   std::remove(path.c_str());
 }
 
-// The input model's renders are dropped when their cache is full and
-// rendered again when needed: a cache of one frame runs as an unbounded one.
-TEST(Embedder, InputRenderCacheOfOneFrameGivesTheSameRun) {
-  Scene s = MakeScene(3, 24, 20);
-  HiddenModel net(TinyDecoderConfig(8), false, 3);
-  Decoder decoder(&net);
-  EmbedOptions o = DefaultEmbedOptions(8);
-  o.crop_size = 0;
-  o.fidelity_to_input = true;
-  o.mse_weight = 50;
-  o.owner_reading = true;
-  o.margin = 1;
-  Embedder unbounded(o, s.views, s.train, s.model, 3.0, &decoder,
-                     RandomBits(8, 1), MakeCpuRasterizer());
-  unbounded.Run();
-  o.input_render_cache_bytes = 24 * 20 * 3 * sizeof(float);
-  Embedder bounded(o, s.views, s.train, s.model, 3.0, &decoder,
-                   RandomBits(8, 1), MakeCpuRasterizer());
-  bounded.Run();
-  ExpectBitIdenticalModels(bounded.model(), unbounded.model());
-  EXPECT_NE(unbounded.model().sh_dc, s.model.sh_dc);
-}
-
 TEST(Embedder, ResumeGivesTheSameResultAsAnUninterruptedRun) {
   Scene s = MakeScene(2, 24, 20);
   HiddenModel net(TinyDecoderConfig(8), false, 3);
