@@ -111,6 +111,8 @@ Trainer::Trainer(const TrainerOptions& options, const TrainingViews& views,
     strategy_ = MakeInriaDensityStrategy(density, scene_extent_);
     builtin_density_ = std::make_unique<DensityOptions>(density);
   }
+  active_sh_degree_ =
+      std::clamp(options_.initial_sh_degree, 0, model_.sh_degree);
   adam_.Init(model_);
   strategy_->Init(model_);
   // Factored SH gradients are exact and save 168 bytes per Gaussian; the
@@ -182,6 +184,9 @@ std::string Trainer::RunSignature() const {
   j["compact_moments"] = options_.adam.compact_moments;
   // Only when set, so that checkpoints of runs before the option still match.
   if (options_.adam.half_moments) j["half_moments"] = true;
+  if (options_.initial_sh_degree != 0) {
+    j["initial_sh_degree"] = options_.initial_sh_degree;
+  }
   // Density schedule, also only when it differs from Inria's (same reason):
   // resuming with another schedule would silently give another model.
   const DensityOptions& d = options_.density;

@@ -60,6 +60,10 @@ struct TrainerOptions {
   int64_t iterations = 30000;
   // The active SH degree goes up by one every this many iterations.
   int64_t sh_increase_interval = 1000;
+  // Active SH degree at the start (capped by the model's): 0 from SfM points
+  // (Inria), the model's own when refining a trained model whose higher bands
+  // already mean something.
+  int initial_sh_degree = 0;
   // Colour behind the Gaussians.
   std::array<float, 3> background = {0.f, 0.f, 0.f};
   // Seeds the view order and density control's sampling.

@@ -219,7 +219,27 @@ double FeatureNet::MacsPerPixel() const {
   return 1.0 + conv_macs;  // pooling: one add per input value and pixel
 }
 
+void FeatureNet::ConvolutionOutput(const Tensor& image, Tensor* y) {
+  PrepareConvInput(image);
+  conv.Forward(ConvInput(), y);
+  image_ = nullptr;
+}
+
 const Tensor& FeatureNet::Forward(const Tensor& image) {
+  PrepareConvInput(image);
+  if (image.n == 1) {
+    // A batch's conv output may be large: free it.
+    conv_out_ = Tensor();
+    StripForward(ConvInput());
+  } else {
+    conv.Forward(ConvInput(), &conv_out_);
+    ReluGlobalAvgPoolForward(conv_out_, &features_);
+  }
+  linear.Forward(features_, &logits_);
+  return logits_;
+}
+
+void FeatureNet::PrepareConvInput(const Tensor& image) {
   if (image.c != 3 || image.h < config_.pool || image.w < config_.pool)
     Fail("feature decoder: input of " + std::to_string(image.w) + "x" +
          std::to_string(image.h) + " pixels (" + std::to_string(image.c) +
@@ -230,10 +250,110 @@ const Tensor& FeatureNet::Forward(const Tensor& image) {
   if (config_.highpass > 0)
     HighpassForward(config_.pool > 1 ? pooled_ : image, config_.highpass,
                     &residual_);
-  conv.Forward(ConvInput(), &conv_out_);
-  ReluGlobalAvgPoolForward(conv_out_, &features_);
-  linear.Forward(features_, &logits_);
-  return logits_;
+}
+
+int FeatureNet::StripRows(int h, int w) const {
+  const size_t row_bytes = size_t(conv.out_channels()) * w * sizeof(float);
+  const int pad = conv.kernel() / 2;
+  const size_t fit = max_strip_bytes_ / std::max<size_t>(row_bytes, 1);
+  // A strip computes its halo rows again; whole images where they fit.
+  if (fit >= size_t(h)) return h;
+  return std::max(1, int(fit) - 2 * pad);
+}
+
+namespace {
+
+// Rows [a, b) of a [1,C,h,w] tensor -> out [1,C,b-a,w].
+void CopyRows(const Tensor& x, int a, int b, Tensor* out) {
+  out->Resize(1, x.c, b - a, x.w);
+  for (int c = 0; c < x.c; ++c) {
+    std::copy(x.Plane(0, c) + size_t(a) * x.w, x.Plane(0, c) + size_t(b) * x.w,
+              out->Plane(0, c));
+  }
+}
+
+}  // namespace
+
+// Strip [r0, r1) of the output rows is computed from input rows [a, b), its
+// rows widened by the kernel's reach and clipped to the image: each output
+// row in [r0, r1) then sees exactly the rows (or the zero padding) it sees
+// in the whole image.
+void FeatureNet::StripForward(const Tensor& input) {
+  const int h = input.h, w = input.w, channels = conv.out_channels();
+  const int pad = conv.kernel() / 2, rows = StripRows(h, w);
+  const size_t hw = size_t(h) * w;
+  mask_words_per_channel_ = (hw + 63) / 64;
+  relu_mask_.assign(size_t(channels) * mask_words_per_channel_, 0);
+  std::vector<double> sums(channels, 0.0);
+  for (int r0 = 0; r0 < h; r0 += rows) {
+    const int r1 = std::min(h, r0 + rows);
+    const int a = std::max(0, r0 - pad), b = std::min(h, r1 + pad);
+    const bool whole = a == 0 && b == h;
+    if (!whole) CopyRows(input, a, b, &strip_in_);
+    conv.Forward(whole ? input : strip_in_, &strip_out_);
+    const size_t first = size_t(r0) * w, count = size_t(r1 - r0) * w;
+#pragma omp parallel for schedule(static)
+    for (int c = 0; c < channels; ++c) {
+      const float* p = strip_out_.Plane(0, c) + size_t(r0 - a) * w;
+      uint64_t* bits = relu_mask_.data() + size_t(c) * mask_words_per_channel_;
+      double sum = 0.0;
+      for (size_t i = 0; i < count; ++i) {
+        if (!(p[i] > 0.f)) continue;
+        sum += p[i];
+        const size_t at = first + i;
+        bits[at >> 6] |= uint64_t(1) << (at & 63);
+      }
+      sums[c] += sum;
+    }
+  }
+  features_.Resize(1, channels, 1, 1);
+  for (int c = 0; c < channels; ++c)
+    features_.data[c] = float(sums[c] / double(hw));
+  // The scratch of a large strip is not kept between calls.
+  if (strip_out_.size() * sizeof(float) > max_strip_bytes_)
+    strip_out_ = Tensor();
+}
+
+// The ReLU-and-pool gradient of a strip's output rows (dfeatures / hw where
+// the mask is set), zero on its halo rows, taken back through the
+// convolution as if the strip were the image: the halo rows then receive
+// exactly the strip's contributions, and the strips' sum is the whole
+// image's input gradient.
+void FeatureNet::StripBackward(const Tensor& dfeatures, Tensor* dconv_input) {
+  const Tensor& input = ConvInput();
+  const int h = input.h, w = input.w, channels = conv.out_channels();
+  const int pad = conv.kernel() / 2, rows = StripRows(h, w);
+  const size_t hw = size_t(h) * w;
+  dconv_input->Resize(1, input.c, h, w);
+  dconv_input->Fill(0.f);
+  for (int r0 = 0; r0 < h; r0 += rows) {
+    const int r1 = std::min(h, r0 + rows);
+    const int a = std::max(0, r0 - pad), b = std::min(h, r1 + pad);
+    strip_out_.Resize(1, channels, b - a, w);
+    const size_t first = size_t(r0) * w, count = size_t(r1 - r0) * w;
+#pragma omp parallel for schedule(static)
+    for (int c = 0; c < channels; ++c) {
+      const float g = dfeatures.data[c] / float(hw);
+      const uint64_t* bits =
+          relu_mask_.data() + size_t(c) * mask_words_per_channel_;
+      float* d = strip_out_.Plane(0, c);
+      std::fill(d, d + size_t(r0 - a) * w, 0.f);
+      float* out = d + size_t(r0 - a) * w;
+      for (size_t i = 0; i < count; ++i) {
+        const size_t at = first + i;
+        out[i] = (bits[at >> 6] >> (at & 63)) & 1 ? g : 0.f;
+      }
+      std::fill(out + count, d + strip_out_.PlaneSize(), 0.f);
+    }
+    ConvInputGradient(conv, strip_out_, &dcol_, &strip_in_);
+    for (int c = 0; c < input.c; ++c) {
+      const float* from = strip_in_.Plane(0, c);
+      float* to = dconv_input->Plane(0, c) + size_t(a) * w;
+      for (size_t i = 0; i < strip_in_.PlaneSize(); ++i) to[i] += from[i];
+    }
+  }
+  if (strip_out_.size() * sizeof(float) > max_strip_bytes_)
+    strip_out_ = Tensor();
 }
 
 const Tensor& FeatureNet::ConvInput() const {
@@ -256,20 +376,19 @@ void FeatureNet::FeatureBackward(const Tensor& dfeatures, Tensor* dimage) {
   if (!image_ || image_->n != 1) {
     Fail("feature decoder: FeatureBackward needs a single-image Forward");
   }
-  ReluGlobalAvgPoolBackward(dfeatures, conv_out_, &drelu_);
-  ConvInputGradient(conv, drelu_, &dcol_, &dresidual_);
+  StripBackward(dfeatures, &dresidual_);
   InputBackward(&dresidual_, dimage);
 }
 
 void FeatureNet::Backward(const Tensor& dlogits, Tensor* dimage) {
   if (!image_) Fail("feature decoder: Backward before Forward");
   linear.Backward(features_, dlogits, &dfeatures_, false);
-  ReluGlobalAvgPoolBackward(dfeatures_, conv_out_, &drelu_);
-  if (drelu_.n != 1) {
-    // Batches (calibration never backpropagates): the general layer.
-    conv.Backward(ConvInput(), drelu_, &dresidual_, false);
+  if (image_->n == 1) {
+    StripBackward(dfeatures_, &dresidual_);
   } else {
-    ConvInputGradient(conv, drelu_, &dcol_, &dresidual_);
+    // Batches (calibration never backpropagates): the general layer.
+    ReluGlobalAvgPoolBackward(dfeatures_, conv_out_, &drelu_);
+    conv.Backward(ConvInput(), drelu_, &dresidual_, false);
   }
   InputBackward(&dresidual_, dimage);
 }

@@ -61,12 +61,19 @@ class FeatureNet {
   FeatureNet(const FeatureDecoderConfig& config, uint32_t seed);
 
   // image [N,3,H,W] in [-1,1], H and W >= pool -> logits [N,L,1,1]. Keeps
-  // the activations for Backward.
+  // what Backward needs. One image goes through the convolution in strips of
+  // rows (StripRows), keeping only the ReLU's mask (one bit a value): the
+  // whole C x h x w output of a 798x531 frame would be 868 MB.
   const Tensor& Forward(const Tensor& image);
   // Pooled features [N,C,1,1] of the last Forward (before the linear layer).
   const Tensor& features() const { return features_; }
-  // Conv outputs [N,C,h,w] of the last Forward, before the ReLU.
-  const Tensor& conv_output() const { return conv_out_; }
+  // image [N,3,H,W] -> the convolution's output [N,C,h,w] before the ReLU
+  // (calibration's statistics); a later Backward is not allowed.
+  void ConvolutionOutput(const Tensor& image, Tensor* y);
+  // Largest convolution output one strip may hold (bytes): a single image
+  // whose output is larger goes through in several strips, whose results
+  // equal one strip's to float rounding. Tests set it small.
+  void set_max_strip_bytes(size_t bytes) { max_strip_bytes_ = bytes; }
   // dlogits [N,L,1,1] -> dimage [N,3,H,W] of the last Forward's image.
   void Backward(const Tensor& dlogits, Tensor* dimage);
   // dfeatures [1,C,1,1] -> dimage [1,3,H,W]: Backward from the pooled
@@ -88,9 +95,26 @@ class FeatureNet {
   Tensor pooled_, residual_, conv_out_, features_, logits_, dfeatures_, drelu_,
       dresidual_, dpooled_;
 
+  size_t max_strip_bytes_ = size_t(128) << 20;
+  // The ReLU's mask (conv output > 0) of the last single-image Forward, one
+  // bit per value, channel-major, in 64-bit words per channel.
+  std::vector<uint64_t> relu_mask_;
+  size_t mask_words_per_channel_ = 0;
+  // Strip scratch: the convolution's input and output rows of one strip.
+  Tensor strip_in_, strip_out_;
+
   // The convolution's input of the last Forward: the (pooled) image or its
   // residual.
   const Tensor& ConvInput() const;
+  // Pooling and high-pass of `image` (checked): what ConvInput returns.
+  void PrepareConvInput(const Tensor& image);
+  // Output rows per strip for a conv input of width w and height h.
+  int StripRows(int h, int w) const;
+  // Single-image ReLU + global average pool of the convolution, by strips:
+  // features_ and relu_mask_.
+  void StripForward(const Tensor& input);
+  // dfeatures [1,C,1,1] -> dconv_input [1,3,h,w] through relu_mask_.
+  void StripBackward(const Tensor& dfeatures, Tensor* dconv_input);
   // dconv_input -> dimage through the residual and the pooling.
   void InputBackward(Tensor* dconv_input, Tensor* dimage);
   std::vector<float> dcol_;

@@ -26,11 +26,10 @@ void StandardiseConvolution(const std::vector<ImageRGB>& crops,
   const int channels = net->config().channels;
   std::vector<double> sum(channels, 0.0), sum_sq(channels, 0.0);
   double count = 0;
-  Tensor input;
+  Tensor input, y;
   for (const ImageRGB& crop : crops) {
     ImageToTensor(crop, false, &input);
-    net->Forward(input);
-    const Tensor& y = net->conv_output();
+    net->ConvolutionOutput(input, &y);
     const size_t hw = y.PlaneSize();
     for (int c = 0; c < channels; ++c) {
       const float* plane = y.Plane(0, c);

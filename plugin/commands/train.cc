@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "gaussian/device.h"
+#include "gaussian/formats/model_io.h"
 #include "gaussian/formats/ply_io.h"
 #include "gaussian/point_init.h"
 #include "gaussian/trainer.h"
@@ -20,6 +22,7 @@
 #include "gaussian/util/progress.h"
 #include "gaussian/util/text_util.h"
 #include "plugin/command.h"
+#include "plugin/model_alignment.h"
 #include "plugin/option_parser.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
@@ -67,11 +70,14 @@ struct TrainArgs {
   int64_t log_every = 10;
   int64_t densify_from_iter = 500;
   int64_t densify_until_iter = 15000;
+  double densify_grad_threshold = 0.0002;
   bool compact_optimizer = false;
   std::string moment_precision = "float32";
   bool overwrite = false;
   // 0: --iterations.
   int64_t position_lr_max_steps = 0;
+  // "": start from the SfM points.
+  std::string init_path;
 };
 
 void Validate(const TrainArgs& a) {
@@ -88,6 +94,10 @@ void Validate(const TrainArgs& a) {
   if (a.num_threads < 0) Fail("--num_threads must be >= 0 (0 = all cores)");
   if (a.checkpoint_every < 0) Fail("--checkpoint_every must be >= 0");
   if (a.log_every < 1) Fail("--log_every must be >= 1");
+  if (!(a.densify_grad_threshold > 0) ||
+      !std::isfinite(a.densify_grad_threshold)) {
+    Fail("--densify_grad_threshold must be a positive number");
+  }
   if (a.position_lr_max_steps < 0) {
     Fail("--position_lr_max_steps must be >= 0 (0 = --iterations)");
   }
@@ -142,6 +152,31 @@ void CheckOutputFolder(const TrainArgs& a, const Workspace& workspace) {
   }
 }
 
+// The model --init_path names, in the workspace's frame: read in any format,
+// its SH degree checked against --sh_degree, and, when it does not match the
+// photos as given, aligned as embed's --align auto does (then moved onto the
+// workspace, since training happens in the workspace's frame). Throws Error.
+GaussianModel ReadInitialModel(const TrainArgs& a, const Workspace& workspace,
+                               const TrainingViews& views,
+                               const std::array<float, 3>& background,
+                               Rasterizer& rasterizer) {
+  GaussianModel model = ReadModelFile(a.init_path).model;
+  if (model.size() == 0) FailAt(a.init_path, "holds no Gaussians");
+  if (model.sh_degree != a.sh_degree) {
+    FailAt(a.init_path, "has SH degree " + std::to_string(model.sh_degree) +
+                            ", --sh_degree is " + std::to_string(a.sh_degree) +
+                            ": pass --sh_degree " +
+                            std::to_string(model.sh_degree));
+  }
+  const PlacedViews placed =
+      PlaceByOption("train", "auto", rasterizer, model, a.init_path, workspace,
+                    views, background);
+  if (placed.placement.moved) {
+    ApplySimilarity(Inverse(placed.placement.workspace_to_model), &model);
+  }
+  return model;
+}
+
 void WriteReport(const std::string& path, const TrainArgs& a,
                  const Trainer& trainer, const EvalResult& eval,
                  const std::string& split, const std::vector<size_t>& views,
@@ -157,6 +192,7 @@ void WriteReport(const std::string& path, const TrainArgs& a,
           : 0.0;
   j["scene_extent"] = extent;
   j["seed"] = a.seed;
+  if (!a.init_path.empty()) j["init_path"] = a.init_path;
   j["num_threads"] = omp_get_max_threads();
   j["device"] = a.device;
   j["sh_degree"] = a.sh_degree;
@@ -210,6 +246,14 @@ int RunTrain(int argc, char** argv) {
              "(Inria's default is a fixed 30000)");
   parser.Add("downscale", &a.workspace.downscale,
              "Image downscale factor: 1, 2, 4 or 8");
+  parser.Add("init_path", &a.init_path,
+             "Start from this model (any format watergs reads) instead of "
+             "the SfM points, at its own SH degree (which must be "
+             "--sh_degree): for example a model trained at --downscale 4, "
+             "refined and densified at full size, or a splat from another "
+             "trainer. One that does not match the photos is aligned as "
+             "embed's --align auto does, then trained in the workspace's "
+             "frame");
   parser.Add("sh_degree", &a.sh_degree, "Highest SH degree (0-3)");
   parser.Add("background", &a.background,
              "Background colour: r,g,b in [0, 1], black or white");
@@ -234,6 +278,9 @@ int RunTrain(int argc, char** argv) {
              "First iteration of adaptive density control (Inria: 500)");
   parser.Add("densify_until_iter", &a.densify_until_iter,
              "Last iteration of adaptive density control (Inria: 15000)");
+  parser.Add("densify_grad_threshold", &a.densify_grad_threshold,
+             "Mean screen-space position gradient above which a Gaussian is "
+             "cloned or split (Inria: 0.0002; lower grows more Gaussians)");
   parser.AddFlag("compact_optimizer", &a.compact_optimizer,
                  "Compact Adam moments (83 instead of 472 bytes per "
                  "Gaussian; not Inria's exact optimiser; overrides "
@@ -268,20 +315,27 @@ int RunTrain(int argc, char** argv) {
   const WorkspaceViews views(workspace);
   const std::vector<size_t> train_views = workspace.TrainViews(a.eval);
   const std::vector<size_t> test_views = workspace.TestViews(a.eval);
-  std::vector<float> xyz, rgb;
-  workspace.PointCloud(&xyz, &rgb);
-  if (xyz.empty()) {
-    FailAt(workspace.model_path(), "has no 3D points to initialise from");
+  std::unique_ptr<Rasterizer> rasterizer = MakeRasterizer(parser.device());
+  GaussianModel init;
+  if (a.init_path.empty()) {
+    std::vector<float> xyz, rgb;
+    workspace.PointCloud(&xyz, &rgb);
+    if (xyz.empty()) {
+      FailAt(workspace.model_path(), "has no 3D points to initialise from");
+    }
+    init = InitGaussiansFromPoints(xyz, rgb, a.sh_degree);
+  } else {
+    init = ReadInitialModel(a, workspace, views, background, *rasterizer);
   }
-  const GaussianModel init = InitGaussiansFromPoints(xyz, rgb, a.sh_degree);
   const double extent = workspace.SceneExtent();
   const RenderCamera first = views.Camera(train_views.front());
   std::printf(
-      "train: %zu training views, %zu held out, %dx%d, %zu SfM points, "
+      "train: %zu training views, %zu held out, %dx%d, %zu %s, "
       "scene extent %.3f, %d threads, device %s\n",
       train_views.size(), test_views.size(), first.width, first.height,
-      init.size(), extent, omp_get_max_threads(),
-      DeviceName(parser.device()).c_str());
+      init.size(),
+      a.init_path.empty() ? "SfM points" : "Gaussians from --init_path", extent,
+      omp_get_max_threads(), DeviceName(parser.device()).c_str());
 
   TrainerOptions options;
   options.iterations = a.iterations;
@@ -295,6 +349,7 @@ int RunTrain(int argc, char** argv) {
       !a.compact_optimizer && a.moment_precision == "bfloat16";
   options.density.densify_from_iter = a.densify_from_iter;
   options.density.densify_until_iter = a.densify_until_iter;
+  options.density.grad_threshold = a.densify_grad_threshold;
   options.density.white_background =
       background == std::array<float, 3>{1, 1, 1};
   options.checkpoint_path = checkpoint_path;
@@ -304,8 +359,10 @@ int RunTrain(int argc, char** argv) {
   options.test_views = test_views;
   options.test_iterations = test_iterations;
   options.show_progress = true;
-  Trainer trainer(options, views, train_views, init, extent,
-                  MakeRasterizer(parser.device()));
+  // A trained model's higher SH bands already mean something.
+  if (!a.init_path.empty()) options.initial_sh_degree = init.sh_degree;
+  Trainer trainer(options, views, train_views, std::move(init), extent,
+                  std::move(rasterizer));
   if (a.resume) {
     trainer.Resume(checkpoint_path);
     std::printf("train: resumed at iteration %lld\n",

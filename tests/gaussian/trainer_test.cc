@@ -276,6 +276,21 @@ TEST(Trainer, LossDecreases) {
   EXPECT_EQ(trainer.model().CountNonFinite(), 0u);
 }
 
+// A run from SfM points starts at SH degree 0 (Inria); one refining a
+// trained model starts at the degree asked, capped by the model's.
+TEST(Trainer, InitialShDegreeIsCappedByTheModel) {
+  Scene s = MakeScene();
+  ASSERT_EQ(s.init.sh_degree, 1);
+  TrainerOptions o = SmallRun(2);
+  Trainer from_points(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  EXPECT_EQ(from_points.active_sh_degree(), 0);
+  o.initial_sh_degree = 3;
+  Trainer refining(o, s.views, s.train, s.init, 3.3, MakeCpuRasterizer());
+  EXPECT_EQ(refining.active_sh_degree(), 1);
+  refining.Step();
+  EXPECT_EQ(refining.active_sh_degree(), 1);
+}
+
 // Inria saves the model before the last iteration's density control: a run
 // that ends on a densification and opacity-reset iteration must write the
 // model its held-out test scored, not the freshly reset one.

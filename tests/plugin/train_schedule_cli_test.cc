@@ -67,9 +67,17 @@ TEST(TrainCli, IterationsChangeTheScheduleUnlessItsLengthIsFixed) {
   const std::string ws =
       testing::MakeRenderedWorkspace(dir / "ws", testing::SmallSceneOptions());
   const auto help = RunCommand(WatergsBin() + " train -h");
-  EXPECT_NE(help.output.find("--position_lr_max_steps"), std::string::npos);
-  EXPECT_NE(help.output.find("runs of different lengths differ"),
-            std::string::npos)
+  // The help wraps at the widest option's column: read it as one line.
+  std::string text;
+  for (char c : help.output) {
+    if (c == '\n' || c == ' ') {
+      if (!text.empty() && text.back() != ' ') text += ' ';
+    } else {
+      text += c;
+    }
+  }
+  EXPECT_NE(text.find("--position_lr_max_steps"), std::string::npos);
+  EXPECT_NE(text.find("runs of different lengths differ"), std::string::npos)
       << help.output;
   const auto train = [&](const std::string& name, int iterations,
                          const std::string& extra) {

@@ -141,6 +141,48 @@ TEST(FeatureDecoderTest, ForwardAndInputGradientMatchDoubleReference) {
   }
 }
 
+// A single image goes through the convolution in strips of rows when its
+// output is large; any strip height gives the whole image's logits and input
+// gradient (to float rounding), the halo rows included.
+TEST(FeatureDecoderTest, StripsMatchTheWholeImage) {
+  struct Case {
+    int pool, kernel, highpass;
+  };
+  for (const Case& c : std::vector<Case>{{1, 3, 0}, {2, 3, 2}, {1, 5, 1}}) {
+    const FeatureDecoderConfig config{4, 16, c.pool, c.kernel, c.highpass};
+    const uint32_t seed = 11 + c.kernel + c.pool;
+    FeatureDecoder whole(RandomNet(config, seed));
+    const int width = 37, height = 29;
+    const ImageRGB image = RandomImage(width, height, 5);
+    const std::vector<float> dlogits = {0.7f, -1.3f, 0.4f, 2.1f};
+    const std::vector<float> want = whole.Logits(image);
+    ImageRGB want_grad;
+    whole.InputGradient(image, dlogits, &want_grad);
+    double grad_scale = 0;
+    for (float v : want_grad.data)
+      grad_scale = std::max(grad_scale, double(std::abs(v)));
+    ASSERT_GT(grad_scale, 0);
+    const size_t row_bytes = size_t(16) * (width / c.pool) * sizeof(float);
+    for (int rows : {1, 2, 5, 9}) {
+      FeatureDecoder strips(RandomNet(config, seed));
+      strips.net().set_max_strip_bytes(row_bytes * (rows + 2 * (c.kernel / 2)));
+      const std::vector<float> got = strips.Logits(image);
+      for (size_t b = 0; b < got.size(); ++b)
+        EXPECT_NEAR(got[b], want[b], 1e-5 * (1 + std::abs(want[b])))
+            << "rows " << rows << " kernel " << c.kernel;
+      ImageRGB grad;
+      strips.InputGradient(image, dlogits, &grad);
+      ASSERT_EQ(grad.data.size(), want_grad.data.size());
+      double worst = 0;
+      for (size_t i = 0; i < grad.data.size(); ++i)
+        worst =
+            std::max(worst, double(std::abs(grad.data[i] - want_grad.data[i])));
+      EXPECT_LT(worst, 1e-5 * grad_scale)
+          << "rows " << rows << " kernel " << c.kernel << " pool " << c.pool;
+    }
+  }
+}
+
 TEST(FeatureDecoderTest, HighpassBackwardIsTheAdjointOfForward) {
   std::mt19937 rng(2);
   std::normal_distribution<float> normal(0.f, 1.f);
