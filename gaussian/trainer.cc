@@ -184,9 +184,10 @@ std::string Trainer::RunSignature() const {
   j["compact_moments"] = options_.adam.compact_moments;
   // Only when set, so that checkpoints of runs before the option still match.
   if (options_.adam.half_moments) j["half_moments"] = true;
-  if (options_.initial_sh_degree != 0) {
-    j["initial_sh_degree"] = options_.initial_sh_degree;
-  }
+  // The degree the run starts at (capped by the model's), when not Inria's 0.
+  const int initial_sh =
+      std::clamp(options_.initial_sh_degree, 0, model_.sh_degree);
+  if (initial_sh != 0) j["initial_sh_degree"] = initial_sh;
   // Density schedule, also only when it differs from Inria's (same reason):
   // resuming with another schedule would silently give another model.
   const DensityOptions& d = options_.density;

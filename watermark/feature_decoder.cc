@@ -227,6 +227,7 @@ void FeatureNet::ConvolutionOutput(const Tensor& image, Tensor* y) {
 
 const Tensor& FeatureNet::Forward(const Tensor& image) {
   PrepareConvInput(image);
+  last_n_ = image.n;
   if (image.n == 1) {
     // A batch's conv output may be large: free it.
     conv_out_ = Tensor();
@@ -309,9 +310,7 @@ void FeatureNet::StripForward(const Tensor& input) {
   features_.Resize(1, channels, 1, 1);
   for (int c = 0; c < channels; ++c)
     features_.data[c] = float(sums[c] / double(hw));
-  // The scratch of a large strip is not kept between calls.
-  if (strip_out_.size() * sizeof(float) > max_strip_bytes_)
-    strip_out_ = Tensor();
+  last_num_strips_ = (h + rows - 1) / rows;
 }
 
 // The ReLU-and-pool gradient of a strip's output rows (dfeatures / hw where
@@ -352,8 +351,6 @@ void FeatureNet::StripBackward(const Tensor& dfeatures, Tensor* dconv_input) {
       for (size_t i = 0; i < strip_in_.PlaneSize(); ++i) to[i] += from[i];
     }
   }
-  if (strip_out_.size() * sizeof(float) > max_strip_bytes_)
-    strip_out_ = Tensor();
 }
 
 const Tensor& FeatureNet::ConvInput() const {
@@ -373,7 +370,7 @@ void FeatureNet::InputBackward(Tensor* dconv_input, Tensor* dimage) {
 }
 
 void FeatureNet::FeatureBackward(const Tensor& dfeatures, Tensor* dimage) {
-  if (!image_ || image_->n != 1) {
+  if (!image_ || last_n_ != 1) {
     Fail("feature decoder: FeatureBackward needs a single-image Forward");
   }
   StripBackward(dfeatures, &dresidual_);
@@ -383,7 +380,7 @@ void FeatureNet::FeatureBackward(const Tensor& dfeatures, Tensor* dimage) {
 void FeatureNet::Backward(const Tensor& dlogits, Tensor* dimage) {
   if (!image_) Fail("feature decoder: Backward before Forward");
   linear.Backward(features_, dlogits, &dfeatures_, false);
-  if (image_->n == 1) {
+  if (last_n_ == 1) {
     StripBackward(dfeatures_, &dresidual_);
   } else {
     // Batches (calibration never backpropagates): the general layer.

@@ -74,6 +74,8 @@ class FeatureNet {
   // whose output is larger goes through in several strips, whose results
   // equal one strip's to float rounding. Tests set it small.
   void set_max_strip_bytes(size_t bytes) { max_strip_bytes_ = bytes; }
+  // Strips the last single-image Forward took (1: the whole image at once).
+  int last_num_strips() const { return last_num_strips_; }
   // dlogits [N,L,1,1] -> dimage [N,3,H,W] of the last Forward's image.
   void Backward(const Tensor& dlogits, Tensor* dimage);
   // dfeatures [1,C,1,1] -> dimage [1,3,H,W]: Backward from the pooled
@@ -96,11 +98,15 @@ class FeatureNet {
       dresidual_, dpooled_;
 
   size_t max_strip_bytes_ = size_t(128) << 20;
+  int last_num_strips_ = 0;
+  // Batch size of the last Forward.
+  int last_n_ = 0;
   // The ReLU's mask (conv output > 0) of the last single-image Forward, one
   // bit per value, channel-major, in 64-bit words per channel.
   std::vector<uint64_t> relu_mask_;
   size_t mask_words_per_channel_ = 0;
-  // Strip scratch: the convolution's input and output rows of one strip.
+  // Strip scratch, kept between calls (at most max_strip_bytes_ of output):
+  // the convolution's input and output rows of one strip.
   Tensor strip_in_, strip_out_;
 
   // The convolution's input of the last Forward: the (pooled) image or its

@@ -156,6 +156,7 @@ TEST(FeatureDecoderTest, StripsMatchTheWholeImage) {
     const ImageRGB image = RandomImage(width, height, 5);
     const std::vector<float> dlogits = {0.7f, -1.3f, 0.4f, 2.1f};
     const std::vector<float> want = whole.Logits(image);
+    EXPECT_EQ(whole.net().last_num_strips(), 1);
     ImageRGB want_grad;
     whole.InputGradient(image, dlogits, &want_grad);
     double grad_scale = 0;
@@ -167,6 +168,8 @@ TEST(FeatureDecoderTest, StripsMatchTheWholeImage) {
       FeatureDecoder strips(RandomNet(config, seed));
       strips.net().set_max_strip_bytes(row_bytes * (rows + 2 * (c.kernel / 2)));
       const std::vector<float> got = strips.Logits(image);
+      EXPECT_EQ(strips.net().last_num_strips(),
+                (height / c.pool + rows - 1) / rows);
       for (size_t b = 0; b < got.size(); ++b)
         EXPECT_NEAR(got[b], want[b], 1e-5 * (1 + std::abs(want[b])))
             << "rows " << rows << " kernel " << c.kernel;
