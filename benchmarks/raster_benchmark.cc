@@ -30,6 +30,7 @@
 #include "gaussian/device.h"
 #include "gaussian/formats/ply_io.h"
 #include "gaussian/util/file_util.h"
+#include "plugin/command.h"
 
 namespace watergs {
 namespace {
@@ -50,8 +51,10 @@ struct BenchOptions {
   std::string write_scene;
 };
 
-// The camera as intrinsics and a row-major 4x4 world-to-camera matrix.
-void WriteCameraJson(const std::string& path, const RenderCamera& cam) {
+// The camera as intrinsics and a row-major 4x4 world-to-camera matrix, with
+// the provenance of the scene written beside it (which build and options).
+void WriteCameraJson(const std::string& path, const RenderCamera& cam,
+                     const nlohmann::json& provenance) {
   nlohmann::json j;
   j["width"] = cam.width, j["height"] = cam.height;
   j["fx"] = cam.fx, j["fy"] = cam.fy, j["cx"] = cam.cx, j["cy"] = cam.cy;
@@ -63,6 +66,7 @@ void WriteCameraJson(const std::string& path, const RenderCamera& cam) {
     }
   }
   j["viewmat"] = viewmat;
+  j["provenance"] = provenance;
   AtomicWriteFile(path, j.dump(1) + "\n");
 }
 
@@ -232,7 +236,8 @@ int main(int argc, char** argv) {
       try {
         std::filesystem::create_directories(opt.write_scene);
         WritePly(opt.write_scene + "/scene_1m.ply", huge);
-        WriteCameraJson(opt.write_scene + "/camera_1m.json", hd);
+        WriteCameraJson(opt.write_scene + "/camera_1m.json", hd,
+                        ProgramProvenance(argc, argv));
       } catch (const std::exception& e) {
         std::fprintf(stderr, "raster_benchmark: --write_scene %s: %s\n",
                      opt.write_scene.c_str(), e.what());

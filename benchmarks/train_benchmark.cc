@@ -26,6 +26,7 @@
 #include "gaussian/point_init.h"
 #include "gaussian/trainer.h"
 #include "gaussian/util/file_util.h"
+#include "plugin/command.h"
 #include "plugin/training_views.h"
 #include "plugin/workspace.h"
 
@@ -306,6 +307,8 @@ int main(int argc, char** argv) {
       j["state_bytes_per_gaussian_compact"] = compact_bytes;
       j["state_bytes_per_gaussian_bfloat16"] = half_bytes;
       j["grown_bfloat16"] = StagesJson(big.size(), half_times);
+      // Which build and options measured these figures, as the CLI's JSON.
+      j["provenance"] = ProgramProvenance(argc, argv);
       AtomicWriteFile(json_path, j.dump(2) + "\n");
     }
   } catch (const std::exception& e) {

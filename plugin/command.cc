@@ -18,12 +18,28 @@ std::string VersionLine() {
          (GitDirty() == 1 ? " with uncommitted changes" : "");
 }
 
-nlohmann::json Provenance(int argc, char** argv) {
-  return {{"command", CommandLine(argc, argv)},
+namespace {
+
+nlohmann::json ProvenanceOf(const std::string& command) {
+  return {{"command", command},
           {"version", Version()},
           {"commit", GitCommit()},
           {"dirty", GitDirty() < 0 ? nlohmann::json()
                                    : nlohmann::json(GitDirty() == 1)}};
+}
+
+}  // namespace
+
+nlohmann::json Provenance(int argc, char** argv) {
+  return ProvenanceOf(CommandLine(argc, argv));
+}
+
+nlohmann::json ProgramProvenance(int argc, char** argv) {
+  std::string command;
+  for (int i = 0; i < argc; ++i) {
+    command += (i == 0 ? "" : " ") + ShellQuote(argv[i]);
+  }
+  return ProvenanceOf(command);
 }
 
 std::string WithProvenance(const std::string& json_object, int indent, int argc,

@@ -26,6 +26,9 @@ std::string VersionLine();
 // "dirty": true / false, null when the commit is unknown}. argv[0] is the
 // command's name, as the commands receive it.
 nlohmann::json Provenance(int argc, char** argv);
+// The same for a program of this build other than `watergs` (a benchmark):
+// its whole argv, argv[0] its path as run, so the command reads as typed.
+nlohmann::json ProgramProvenance(int argc, char** argv);
 // `json_object`, a JSON object as nlohmann writes it with `indent`, with
 // "provenance" (above) added, written again with `indent` and a newline.
 std::string WithProvenance(const std::string& json_object, int indent, int argc,
