@@ -200,22 +200,19 @@ class Lines:
 
 # ---- The manifest. -----------------------------------------------------------------------------
 
-FERN = "results/real_llff/fern/tables.md"
-FERN2 = "results/real_llff/fern_252x189/tables.md"
-HORNS = "results/real_llff/horns_252x189/tables.md"
 DRAWS = "results/real_llff/horns_252x189_draws/tables.md"
-DEMO_DRAWS = "results/demo_draws/tables.md"
 DEMO = "results/demo/run_demo.log"
 DEMO_S29 = "results/demo/session29_run_demo.log"  # the previous default's run (--target_psnr 0)
 DEMO_HELD = "results/demo/extract_wm_heldout.json"
 DEMO_FREE = "results/demo/extract_wm_free.json"
-OWNER = "results/owner_reading/results.txt"
 OPENSPLAT = "results/third_party/opensplat_demo/summary.txt"
 GPU = "results/gpu/h200-2026-11-26/demo.txt"
 FAST = "results/testing/fast_tier.txt"
 DETECT = "results/owner_reading/detect_probe.txt"
 NULL = "results/owner_reading/owner_null.md"
 BLIND = "results/blind_designs/results.txt"
+# The designs' raw model (blind_decoder_designs.sh trains it as run_demo.sh does): its held-out PSNR.
+BLIND_RAW_PSNR = grep("results/blind_designs/raw_train.log", r"held-out views \(6\): PSNR ([\d.]+) dB")
 LEGO = "results/nerf_synthetic_lego/tables.md"
 BOTH = "results/reading_both/results.txt"
 BOTH_R2P2 = ("r2p2_both_w0.5_m0", "r2p2_both_w0.5_m0_s1", "r2p2_both_w0.5_m0_s2")
@@ -275,8 +272,8 @@ def seeds(path, column, runs=("owner_seed0", "owner_seed1", "owner_seed2"), read
     return [cell(path, (run, reading), column, index) for run in runs]
 
 
-def probe(label, field, path=OWNER):
-    """A number of one line of single_view_probe.sh's results.txt: the label's line, the figure
+def probe(label, field, path):
+    """A number of one line of single_view_probe.sh's results.txt (path): the label's line, the figure
     after field (e.g. 'owner held ', 'free48 ', 'vs raw ')."""
     return grep(path, r"^" + re.escape(label) + r"\s.*?" + re.escape(field) + r"\s*" + NUMBER)
 
@@ -337,17 +334,7 @@ CLAIMS = [
     Claim("fixed blind weight: {}-{}% at {}-{} dB, seed 0)",
           span(cell(F2B, ("both_seed0", "blind"), "identity"), cell(H2B, ("both_seed0", "blind"), "identity")),
           span(cell(F2B, ("both_seed0", "owner"), FROM_RAW), cell(H2B, ("both_seed0", "owner"), FROM_RAW))),
-    Claim("fern: {} hand-held photos at 504x378; horns: {} at 252x189",
-          grep("results/real_llff/fern/reconstruct.log", r"(\d+) of \d+ photos registered"),
-          grep("results/real_llff/horns_252x189/reconstruct.log", r"(\d+) of \d+ photos registered")),
-    Claim("on its own, at {}-{} dB from the raw renders",
-          span(*seeds(FERN, FROM_RAW), *seeds(HORNS, FROM_RAW))),
-    Claim("and {}-{} dB of held-out PSNR against the photos",
-          span(*losses(FERN, SEEDS), *losses(HORNS, SEEDS))),
-    Claim("a second reconstruction of horns {}-{} dB", span(*losses(DRAWS, SEEDS))),
-    Claim("keeps those readings on fern at {}-{} dB (horns {}-{}",
-          span(*seeds(FERN2, FROM_RAW, runs=AUTO)), span(*seeds(HORNS, FROM_RAW, runs=AUTO))),
-    Claim("(horns, 32 draws: {}% of bits per image against the defaults' {}%)",
+    Claim("32 draws: {}% of bits per image against {}% with the distortion layers always on;",
           mean(*seeds(DRAWS, "crop:0.1", runs=AUTO, index=4)), mean(*seeds(DRAWS, "crop:0.1", index=4))),
 
     # -- the paper's figures set beside ours (its LaTeX source) --
@@ -386,70 +373,6 @@ CLAIMS = [
           grep(DEMO, r"watermarked vs the raw renders: ([\d.]+) dB"),
           combine(lambda v: v[0] - v[1], grep(DEMO, r"held-out PSNR vs the photos: raw ([\d.]+) dB, watermarked ([\d.]+) dB"))),
     # -- the figures table, row by row --
-    Claim("(real: {} photos, 504x378, reconstructed here; raw {} its)",
-          grep("results/real_llff/fern/reconstruct.log", r"(\d+) of \d+ photos registered"),
-          grep(FERN, r"Raw model: \d+ Gaussians, (\d+) iterations")),
-    Claim("| {}% ({} of 3) / {}% ({} of 12) on each seed; Table 1 per image identity/gn/dropout/crop {}% each "
-          "as the owner, one draw of each attack as the paper (read blind, the paper's reading: here {}-{}% "
-          "per image; paper, LLFF: {}-{}%) | **{} / {} / {} dB** | {} -> {} / {} / {} (**{}**; paper, LLFF: {})",
-          highest(*single_views(FERN, SEEDS, "held-out mean")),
-          lowest(*single_views(FERN, SEEDS, "held-out views")),
-          highest(*single_views(FERN, SEEDS, "free mean")),
-          lowest(*single_views(FERN, SEEDS, "free 'present'")),
-          highest(*table1(FERN, SEEDS)),
-          span(*[cell(FERN, (r, "blind"), "identity") for r in SEEDS]),
-          span(PAPER_TABLE1_LLFF), *seeds(FERN, FROM_RAW), cell(FERN, SEEDS[0:1] + ("owner",), RAW_PSNR),
-          *seeds(FERN, RAW_PSNR, index=1), diffs(FERN, SEEDS[:1])[0], scaled(-1, PAPER_COST_LLFF)),
-    Claim("view-dependent colour alone (`--mask f_rest`) {}% at {} dB (3 seeds); CONCAT+3DGS {}% at {} dB "
-          "| {}% / {}% | **{} dB** | {} -> {} (**{}**)",
-          highest(*table1(FERN2, [f"owner_seed{i}_frest500" for i in range(3)])),
-          mean(*seeds(FERN2, FROM_RAW, runs=[f"owner_seed{i}_frest500" for i in range(3)])),
-          grep("results/real_llff/fern_252x189/baselines/concat/eval.md",
-               r"^\| watermarked \| identity \|.*\| ([\d.]+) / [\d.]+ / [\d.]+ \|$"),
-          grep("results/real_llff/fern_252x189/baselines/concat/eval.md",
-               r"^\| watermarked vs raw renders \| ([\d.]+)"),
-          cell(FERN2, ("owner_seed0", "owner"), "held-out mean"), cell(FERN2, ("owner_seed0", "owner"), "free mean"),
-          cell(FERN2, ("owner_seed0", "owner"), FROM_RAW), cell(FERN2, ("owner_seed0", "owner"), RAW_PSNR),
-          cell(FERN2, ("owner_seed0", "owner"), RAW_PSNR, 1), diffs(FERN2, SEEDS[:1])[0]),
-    Claim("(real: {} photos at 252x189, reconstructed here: {} of 62, centres {}% from LLFF's poses; raw {} dB), "
-          "the first default, seeds 0-2 | {}% ({} of 8) / 48 free viewpoints {}% on each seed; Table 1 per image "
-          "{}% each (one draw of each attack) | **{} / {} / {} dB** | {} -> {} / {} / {} (**{}**)",
-          grep("results/real_llff/horns_252x189/reconstruct.log", r"\d+ of (\d+) photos registered"),
-          grep("results/real_llff/horns_252x189/reconstruct.log", r"(\d+) of \d+ photos registered"),
-          grep("results/real_llff/horns_252x189/model_info.txt", r"off by median ([\d.]+)%"),
-          grep(HORNS, r"held-out PSNR ([\d.]+) dB"),
-          highest(*single_views(HORNS, SEEDS, "held-out mean")),
-          lowest(*single_views(HORNS, SEEDS, "held-out views")),
-          highest(*single_views(HORNS, SEEDS, "free mean")),
-          highest(*table1(HORNS, SEEDS)),
-          *seeds(HORNS, FROM_RAW), cell(HORNS, ("owner_seed0", "owner"), RAW_PSNR),
-          *seeds(HORNS, RAW_PSNR, index=1), mean(*diffs(HORNS, SEEDS))),
-    Claim("| {}% / {}% on every run; Table 1 per image {}% each; chosen: nothing on fern, crop on horns seeds 0-1 "
-          "| fern **{} / {} / {}**, horns {} / {} / **{} dB** (defaults: fern {}; horns {} / {} / {}) "
-          "| fern {} -> {} / {} / {}, horns {} -> {} / {} / {} |",
-          highest(*single_views(FERN2, AUTO, "held-out mean"), *single_views(HORNS, AUTO, "held-out mean")),
-          highest(*single_views(FERN2, AUTO, "free mean"), *single_views(HORNS, AUTO, "free mean")),
-          highest(*table1(FERN2, AUTO), *table1(HORNS, AUTO)),
-          *seeds(FERN2, FROM_RAW, runs=AUTO), *seeds(HORNS, FROM_RAW, runs=AUTO),
-          cell(FERN2, ("owner_seed0", "owner"), FROM_RAW), *seeds(HORNS, FROM_RAW),
-          cell(FERN2, ("owner_seed0_autor", "owner"), RAW_PSNR), *seeds(FERN2, RAW_PSNR, runs=AUTO, index=1),
-          cell(HORNS, ("owner_seed0_autor", "owner"), RAW_PSNR), *seeds(HORNS, RAW_PSNR, runs=AUTO, index=1)),
-    Claim("seeds 0-2 | {} / {} / {}% ({} / {} / {}) / 48 free viewpoints {} / {} / {}% | **{} / {} / {} dB** "
-          "| {} -> {} / {} / {} ({}) |",
-          *single_views(DEMO_DRAWS, SEEDS, "held-out mean"), *single_views(DEMO_DRAWS, SEEDS, "held-out mean", 1),
-          *single_views(DEMO_DRAWS, SEEDS, "free mean"), *seeds(DEMO_DRAWS, FROM_RAW),
-          cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR), *seeds(DEMO_DRAWS, RAW_PSNR, index=1),
-          mean(*diffs(DEMO_DRAWS, SEEDS))),
-    Claim("gn / dropout / crop {} / {} / **{}%** (crop's first draw, the paper's one-draw protocol: {}%; single "
-          "draws 0-{}%), aggregated 0-{} of 48; `--distortions auto` {} / {} / {}% | {} dB; auto **{}** "
-          "| {}; auto {} |",
-          *[mean(*table1(DEMO_DRAWS, SEEDS, [a], 4)) for a in ATTACKS[1:]],
-          highest(*table1(DEMO_DRAWS, SEEDS, ["crop:0.1"])),
-          highest(*table1(DEMO_DRAWS, SEEDS, ATTACKS[1:], 5)),
-          highest(*table1(DEMO_DRAWS, SEEDS, ATTACKS[1:], 6)),
-          *[mean(*table1(DEMO_DRAWS, AUTO, [a], 4)) for a in ATTACKS[1:]],
-          mean(*seeds(DEMO_DRAWS, FROM_RAW)), mean(*seeds(DEMO_DRAWS, FROM_RAW, runs=AUTO)),
-          mean(*seeds(DEMO_DRAWS, RAW_PSNR, index=1)), mean(*seeds(DEMO_DRAWS, RAW_PSNR, runs=AUTO, index=1))),
     Claim("gn / dropout / crop {} / {}-{} / **{}-{}%** ({} draws of 32 above 1%, largest {}%); aggregated at most "
           "{} of 48, 'present' on {} of 32 draws of each, every seed; single views alone {} of 8 held-out, {} of 48 "
           "free; auto crop {}-{}%",
@@ -466,17 +389,6 @@ CLAIMS = [
           span(*seeds(DRAWS, FROM_RAW)), span(*seeds(DRAWS, FROM_RAW, runs=AUTO)),
           cell(DRAWS, ("owner_seed0", "owner"), RAW_PSNR), span(*seeds(DRAWS, RAW_PSNR, index=1)),
           span(*seeds(DRAWS, RAW_PSNR, runs=AUTO, index=1))),
-    Claim("| {}% ({}) / 12 free viewpoints {} / {} / {}% (two of them are close-ups inside the ring;",
-          probe("v2_owner_s0", "owner held"), grep(OWNER, r"^v2_owner_s0\s.*?owner held\s+[\d.]+% p90\s+([\d.]+)"),
-          *[grep(OWNER, rf"^v2_owner_s{i}\s.*?owner held .*?\| free\s+([\d.]+)%") for i in range(3)]),
-    Claim("history](docs/history.md#free-viewpoints-12-or-48-and-the-hard-viewpoint-pool)) | {}-{} dB | {}-{} |",
-          span(*[probe(f"v2_owner_s{i}", "vs raw") for i in range(3)]),
-          span(*[probe(f"v2_owner_s{i}", "PSNR") for i in range(3)])),
-    Claim("| {}% ({}) / {}% | {} dB | {} (raw {}: {}) |",
-          probe("blind_default", "held"), grep(OWNER, r"^blind_default\s+held\s+[\d.]+% p90\s+([\d.]+)"),
-          grep(OWNER, r"^blind_default\s.*?\| free\s+([\d.]+)%"), probe("blind_default", "vs raw"),
-          probe("blind_default", "PSNR"), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR),
-          difference(probe("blind_default", "PSNR"), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR))),
     Claim("| {} of 20 \"present\" alone (whole, cropped 80%, shrunk 75%); raw model's {} of 20 |",
           grep(DETECT, r"^alt_base.*?wm: (\d+) of 20 present"), grep(DETECT, r"^alt_base.*?raw control: (\d+) present")),
     Claim("OpenSplat 1.1.5 on the demo ({} Gaussians, SH {}, its default normalised frame; built and trained by "
@@ -538,14 +450,6 @@ CLAIMS = [
     Claim("| {} single reads of 4 unmarked models: single keys {}-{}x the binomial rate at 1e-2",
           cell(NULL, ("text:WGS-26, key 0", "1", "0.01"), "Trials"),
           span(*[cell(NULL, (f"text:WGS-26, key {k}", "1", "0.01"), "Empirical / binomial") for k in range(3)])),
-    Claim("| reconstruct {} s (fern; horns' log keeps no time), train {} / {} min, embed and read {}-{} / {}-{} min",
-          grep("results/real_llff/fern/reconstruct.log", r"^real\s+0m([\d.]+)s"),
-          scaled(1 / 60, grep("results/real_llff/fern/times.txt", r"^train (\d+)")),
-          scaled(1 / 60, grep("results/real_llff/horns_252x189/times.txt", r"^train (\d+)")),
-          scaled(1 / 60, span(*[grep("results/real_llff/fern/times.txt", rf"^embed\+read:owner_seed{i} (\d+)$")
-                                for i in range(3)])),
-          scaled(1 / 60, span(*[grep("results/real_llff/horns_252x189/times.txt",
-                                     rf"^embed\+read:owner_seed{i} (\d+)$") for i in range(3)]))),
     Claim("| train {} it/s, embed {} it/s (blind default)",
           grep(GPU, r"^train: .*\(([\d.]+) it/s\)"),
           combine(lambda v: v[0] / v[1], grep(GPU, r"^embed: (\d+) iterations in ([\d.]+)s"))),
@@ -563,8 +467,8 @@ CLAIMS = [
           probe("residual2_inria", "held", BLIND),
           grep(BLIND, r"^residual2_inria\s+held\s+[\d.]+% p90\s+([\d.]+)"),
           grep(BLIND, r"^residual2_inria\s.*?\| free\s+([\d.]+)%"), probe("residual2_inria", "vs raw", BLIND),
-          probe("residual2_inria", "PSNR", BLIND), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR),
-          difference(probe("residual2_inria", "PSNR", BLIND), cell(DEMO_DRAWS, ("owner_seed0", "owner"), RAW_PSNR))),
+          probe("residual2_inria", "PSNR", BLIND), BLIND_RAW_PSNR,
+          difference(probe("residual2_inria", "PSNR", BLIND), BLIND_RAW_PSNR)),
     Claim("| {} s an iteration (render {}, decoder {}, backward {}, Adam {} s): {} min for 1,500 iterations; "
           "whole frames (`--crop_size 0`) {} s, {} min, the decoder {} s of it; peak memory {} GB, whole frames {} GB",
           combine(lambda v: [v[0] / 1e3, v[2] / 1e3, v[4] / 1e3, v[5] / 1e3, v[7] / 1e3, v[0] * 1.5 / 60],
