@@ -56,7 +56,7 @@ class ReadmeClaimsTest(unittest.TestCase):
         readme = read_readme()
         cases = [("**38.05 / 38.62 / 38.01 dB**", "**38.05 / 38.72 / 38.01 dB**", "results/mipnerf360_bonsai/tables.md"),
                  ("seeds 0-2, 38.29-38.90", "seeds 0-2, 38.39-38.90", "results/real_llff/fern_252x189_both/tables.md"),
-                 ('| 17 of 20 "present" alone', '| 19 of 20 "present" alone', "results/owner_reading/detect_probe.txt")]
+                 ('| 14 of 20 "present" alone', '| 17 of 20 "present" alone', "results/detect_probe/demo_default/results.txt")]
         with tempfile.TemporaryDirectory() as tmp:
             copy = os.path.join(tmp, "README.md")
             shutil.copy(README, copy)
