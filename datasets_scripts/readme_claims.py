@@ -231,6 +231,7 @@ VIEWER_T38J = "results/viewers/default_t38/jpeg_layer/"
 VC = "results/viewers/viewer_conventions/"
 # Read again with the viewers' 8-bit canvas and storage emulated (session 33): the README's figures.
 VC33 = VC + "session33/"
+JLS = "results/viewers/jpeg_layer_strength/"  # session 38: the layer's strength, the first default's decoder
 FERN_T38_S31 = "results/viewers/default_t38/fern_t38/"  # before
 F2B_DIR = "results/real_llff/fern_252x189_both/"
 H2B_DIR = "results/real_llff/horns_252x189_both/"
@@ -764,6 +765,55 @@ CLAIMS = [
           shots(FERN_T38_S31 + "ber.tsv", "gs3d_wm", "mean"),
           shots(FERN_T38_S31 + "ber.tsv", "playcanvas_wm", "mean"),
           cell(F2B, (T38[0], "owner"), FROM_RAW), cell(F2B, ("both_seed0_t38j", "owner"), FROM_RAW)),
+    Claim("the demo: gaussian-splats-3d {} of 6 \"present\" alone, mean {}%; PlayCanvas {} of 6, {}%; 12 free viewpoints ({} "
+          "register) {} and {}, {}% / {}%; fern: {} of 3 and {} of 3, {}% / {}%, 12 free viewpoints {} and {}, {}% / {}%; the raw "
+          "models' screenshots \"absent\" alone, {} of {}; gaussian-splats-3d's screen recording of the demo ({} frames, H.264 at {} kbit/s) "
+          "\"present\" from frame {}, {} of {} frames alone, the raw model's \"absent\"; the price is the blind reading: one held-out view read blind {}% (demo), "
+          "{}% (fern) | demo **{}**, fern **{} dB** | {} -> {}, {} -> {} |",
+          *[shots(JLS + "demo_first_jl90x05/viewers_held/ber.tsv", v + "_wm", f)
+            for v, f in (("gs3d", "present"), ("gs3d", "mean"), ("playcanvas", "present"), ("playcanvas", "mean"))],
+          shots(JLS + "demo_first_jl90x05/viewers_free/ber.tsv", "gs3d_wm", "registered"),
+          *[shots(JLS + "demo_first_jl90x05/viewers_free/ber.tsv", v + "_wm", f)
+            for f in ("present", "mean") for v in ("gs3d", "playcanvas")],
+          *[shots(JLS + "fern_first_jl90x05/" + views + "/ber.tsv", v + "_wm", f)
+            for views in ("viewers_held", "viewers_free") for f in ("present", "mean") for v in ("gs3d", "playcanvas")],
+          combine(sum, *[shots(JLS + run + views + "/ber.tsv", v + "_raw", "absent")
+                         for run in ("demo_first_jl90x05/", "fern_first_jl90x05/") for views in ("viewers_held", "viewers_free")
+                         for v in ("gs3d", "playcanvas")]),
+          combine(sum, *[shots(JLS + run + views + "/ber.tsv", v + "_raw", "registered")
+                         for run in ("demo_first_jl90x05/", "fern_first_jl90x05/") for views in ("viewers_held", "viewers_free")
+                         for v in ("gs3d", "playcanvas")]),
+          grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t\d+\t\d+ of (\d+)"), grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t(\d+)"),
+          grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t(?:[^\t]*\t){6}(\d+)"), grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t(?:[^\t]*\t){4}(\d+) /"),
+          grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t\d+\t\d+ of (\d+)"),
+          probe("first_jl90x05", "held", JLS + "demo_probe_results.txt"),
+          probe("owner_seed0_jl05", "held", JLS + "fern_probe_results.txt"),
+          probe("first_jl90x05", "vs raw", JLS + "demo_probe_results.txt"),
+          probe("owner_seed0_jl05", "vs raw", JLS + "fern_probe_results.txt"),
+          grep(JLS + "demo_first_jl90x05/eval.md", r"raw vs ground truth \| ([\d.]+)"),
+          probe("first_jl90x05", "PSNR", JLS + "demo_probe_results.txt"),
+          grep(JLS + "fern_raw.log", r"held-out views \(3\): PSNR ([\d.]+)"),
+          probe("owner_seed0_jl05", "PSNR", JLS + "fern_probe_results.txt")),
+    Claim("the demo: held-out {}% / {}% ({} of 6 and {} of 6 \"present\" alone), 12 free viewpoints {}% / {}% ({} of {} each), "
+          "below the fidelity bar; fern: {}% / {}% ({} of 3 each), free {}% / {}% ({} of 12 each); the blind reading kept: one "
+          "held-out view {}% (demo), {}% (fern) | demo {}, fern {} dB | {} -> {}, {} -> {} |",
+          *[shots(JLS + "demo_jl90x1_it3000/viewers_held/ber.tsv", v + "_wm", "mean") for v in ("gs3d", "playcanvas")],
+          *[shots(JLS + "demo_jl90x1_it3000/viewers_held/ber.tsv", v + "_wm", "present") for v in ("gs3d", "playcanvas")],
+          *[shots(JLS + "demo_jl90x1_it3000/viewers_free/ber.tsv", v + "_wm", "mean") for v in ("gs3d", "playcanvas")],
+          lowest(*[shots(JLS + "demo_jl90x1_it3000/viewers_free/ber.tsv", v + "_wm", "present") for v in ("gs3d", "playcanvas")]),
+          shots(JLS + "demo_jl90x1_it3000/viewers_free/ber.tsv", "gs3d_wm", "registered"),
+          *[shots(JLS + "fern_jl90x1_it3000/viewers_held/ber.tsv", v + "_wm", "mean") for v in ("gs3d", "playcanvas")],
+          lowest(*[shots(JLS + "fern_jl90x1_it3000/viewers_held/ber.tsv", v + "_wm", "present") for v in ("gs3d", "playcanvas")]),
+          *[shots(JLS + "fern_jl90x1_it3000/viewers_free/ber.tsv", v + "_wm", "mean") for v in ("gs3d", "playcanvas")],
+          lowest(*[shots(JLS + "fern_jl90x1_it3000/viewers_free/ber.tsv", v + "_wm", "present") for v in ("gs3d", "playcanvas")]),
+          probe("jl90x1_it3000", "held", JLS + "demo_probe_results.txt"),
+          probe("both_seed0_jl3000", "held", JLS + "fern_probe_results.txt"),
+          probe("jl90x1_it3000", "vs raw", JLS + "demo_probe_results.txt"),
+          probe("both_seed0_jl3000", "vs raw", JLS + "fern_probe_results.txt"),
+          grep(JLS + "demo_jl90x1_it3000/eval.md", r"raw vs ground truth \| ([\d.]+)"),
+          probe("jl90x1_it3000", "PSNR", JLS + "demo_probe_results.txt"),
+          grep(JLS + "fern_raw.log", r"held-out views \(3\): PSNR ([\d.]+)"),
+          probe("both_seed0_jl3000", "PSNR", JLS + "fern_probe_results.txt")),
     Claim("\"present\" from frame {}; {} of {} frames \"present\" alone (mean {}% a frame), all together {} of 48 wrong, \"present\"; "
           "the raw model's recording \"absent\" ({} of 48); `detect` {} s a frame: H.264 takes more of the default's finer "
           "band than of the first default's | {} dB |",

@@ -8,7 +8,7 @@
 # conventions chosen per frame). The raw model's recording along the same path is the control.
 #   results/viewers/recording/measure.sh RAW WM OUT
 # Environment: WATERGS_BIN, VIEWER (gs3d | playcanvas; gs3d), FIRST (0), LAST (8), STEPS (4),
-# FPS (10), CRF (23). Writes OUT/<viewer>_<model>.mp4 (+ .probe.json: ffprobe's bitrate),
+# FPS (10), CRF (23), DECODER (detect's decoder: the one the file was embedded for). Writes OUT/<viewer>_<model>.mp4 (+ .probe.json: ffprobe's bitrate),
 # OUT/detect_<viewer>_<model>.{txt,json,time} and OUT/recording.tsv: per model, frames registered,
 # bits wrong per frame, verdicts alone, all frames together, and how many frames from the start
 # the aggregate (mean logits) needs to read "present".
@@ -41,7 +41,7 @@ for model in wm raw; do
   ffmpeg -loglevel error -i "$out/$name.mp4" -start_number 0 "$decoded/frame_%03d.png"
   if [ ! -f "$out/detect_$name.json" ]; then
     start=$SECONDS
-    "$bin" detect --image_path "$decoded" --message "$message" --raw_path "$raw" --workspace_path "$scene" \
+    "$bin" detect --image_path "$decoded" --message "$message" --raw_path "$raw" --workspace_path "$scene" ${DECODER:+--decoder "$DECODER"} \
       --downscale 2 --json "$out/detect_$name.json.tmp" > "$out/detect_$name.txt" 2>&1
     mv "$out/detect_$name.json.tmp" "$out/detect_$name.json"
     echo "$((SECONDS - start)) s for $(ls "$decoded" | wc -l) frames" > "$out/detect_$name.time"

@@ -15,6 +15,7 @@
 # SHOTS_ONLY=1: stop there (no detect). FREE_VIEWS=N: N free viewpoints between the cameras (render
 # --num_views N --seed 0) instead of the held-out cameras. SCENE: another workspace (read at
 # --downscale 2 like the demo), e.g. fern's. SETTINGS: the detect settings to run ("watergs auto").
+# DECODER: the decoder detect reads with (default: detect's), for a file embedded with another.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../../.." && pwd)"
 raw=${1:?usage: measure.sh RAW WM OUT}; wm=${2:?WM}; out=${3:?OUT}
@@ -62,7 +63,7 @@ images="$out/jpeg_gs3d_wm,$out/jpeg_playcanvas_wm,$out/jpeg_gs3d_raw,$out/jpeg_p
 for setting in ${SETTINGS:-watergs auto}; do
   [ -f "$out/detect_$setting.json" ] && continue
   start=$SECONDS
-  nice -n 10 "$bin" detect --image_path "$images" --message "$message" --raw_path "$raw" \
+  nice -n 10 "$bin" detect --image_path "$images" --message "$message" --raw_path "$raw" ${DECODER:+--decoder "$DECODER"} \
     --workspace_path "$scene" --downscale 2 --reference_conventions "$setting" \
     --json "$out/detect_$setting.json.tmp" > "$out/detect_$setting.txt" 2>&1
   mv "$out/detect_$setting.json.tmp" "$out/detect_$setting.json"
