@@ -175,7 +175,9 @@ timeout 300 "${submit[@]}" >"$tmp/run3.txt" 2>&1 || rc=$?
 cat "$tmp/run3.txt"
 [ "$rc" -eq 1 ] || fail "third submission: exit $rc, expected 1"
 grep -q "3 scenes in .*, 1 to run (indices 0)" "$tmp/run3.txt" || fail "third submission should run alpha alone"
-last="$(ls -d "$out"/submissions/*/ | tail -n 1)"
+# The folder this submission printed ("logs in DIR"): two submissions in one second sort by their
+# pid, not by their order ("-10035" before "-9839").
+last="$(grep -o 'logs in [^ ]*' "$tmp/run3.txt" | tail -n 1 | cut -d' ' -f3)/"
 grep -q "cached: train alpha" "$last"slurm-*_0.out || fail "alpha's training was not reused"
 grep -q "cached: embed alpha" "$last"slurm-*_0.out || fail "alpha's embedding was not reused"
 snapshot | grep -v '^./alpha/eval\|^./alpha/status.json' | diff "$tmp/kept.txt" - ||
@@ -262,7 +264,7 @@ rc=0
 timeout 600 "${resume_submit[@]}" >"$tmp/resume2.txt" 2>&1 || rc=$?
 cat "$tmp/resume2.txt"
 [ "$rc" -eq 0 ] || fail "resubmission after the signal: exit $rc, expected 0"
-last="$(ls -d "$out_resume"/submissions/*/ | tail -n 1)"
+last="$(grep -o 'logs in [^ ]*' "$tmp/resume2.txt" | tail -n 1 | cut -d' ' -f3)/"
 grep -q "cached: train gamma" "$last"slurm-*_0.out || fail "gamma's training was not reused"
 grep -E "resumed at iteration [1-9][0-9]*" "$gamma/embed.log" || fail "gamma's embedding did not resume from its checkpoint"
 grep -q '"state": "done"' "$gamma/status.json" || fail "gamma not done after resuming"
