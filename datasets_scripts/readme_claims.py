@@ -285,6 +285,16 @@ def probe(label, field, path):
 
 
 
+def blind_and_costs(demo_label, fern_label, demo_run):
+    """Session 38's viewer rows end alike: one held-out view read blind (demo, fern), PSNR from the
+    raw renders (demo, fern), then raw -> watermarked against the photos (demo, fern)."""
+    demo, fern = JLS + "demo_probe_results.txt", JLS + "fern_probe_results.txt"
+    return [probe(demo_label, "held", demo), probe(fern_label, "held", fern),
+            probe(demo_label, "vs raw", demo), probe(fern_label, "vs raw", fern),
+            grep(JLS + demo_run + "/eval.md", r"raw vs ground truth \| ([\d.]+)"), probe(demo_label, "PSNR", demo),
+            grep(JLS + "fern_raw.log", r"held-out views \(3\): PSNR ([\d.]+)"), probe(fern_label, "PSNR", fern)]
+
+
 AUTO = ("owner_seed0_autor", "owner_seed1_autor", "owner_seed2_autor")
 
 def diffs(path, runs, reading="owner"):
@@ -786,14 +796,7 @@ CLAIMS = [
           grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t\d+\t\d+ of (\d+)"), grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t(\d+)"),
           grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t(?:[^\t]*\t){6}(\d+)"), grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t(?:[^\t]*\t){4}(\d+) /"),
           grep(JLS + "demo_first_jl90x05/recording/recording.tsv", r"^gs3d_wm\t\d+\t\d+ of (\d+)"),
-          probe("first_jl90x05", "held", JLS + "demo_probe_results.txt"),
-          probe("owner_seed0_jl05", "held", JLS + "fern_probe_results.txt"),
-          probe("first_jl90x05", "vs raw", JLS + "demo_probe_results.txt"),
-          probe("owner_seed0_jl05", "vs raw", JLS + "fern_probe_results.txt"),
-          grep(JLS + "demo_first_jl90x05/eval.md", r"raw vs ground truth \| ([\d.]+)"),
-          probe("first_jl90x05", "PSNR", JLS + "demo_probe_results.txt"),
-          grep(JLS + "fern_raw.log", r"held-out views \(3\): PSNR ([\d.]+)"),
-          probe("owner_seed0_jl05", "PSNR", JLS + "fern_probe_results.txt")),
+          *blind_and_costs("first_jl90x05", "owner_seed0_jl05", "demo_first_jl90x05")),
     Claim("the demo: held-out {}% / {}% ({} of 6 and {} of 6 \"present\" alone), 12 free viewpoints {}% / {}% ({} of {} each), "
           "but at less fidelity than the default keeps; fern: {}% / {}% ({} of 3 each), free {}% / {}% ({} of 12 each); the blind reading kept: one "
           "held-out view {}% (demo), {}% (fern) | demo {}, fern {} dB | {} -> {}, {} -> {} |",
@@ -806,14 +809,7 @@ CLAIMS = [
           lowest(*[shots(JLS + "fern_jl90x1_it3000/viewers_held/ber.tsv", v + "_wm", "present") for v in ("gs3d", "playcanvas")]),
           *[shots(JLS + "fern_jl90x1_it3000/viewers_free/ber.tsv", v + "_wm", "mean") for v in ("gs3d", "playcanvas")],
           lowest(*[shots(JLS + "fern_jl90x1_it3000/viewers_free/ber.tsv", v + "_wm", "present") for v in ("gs3d", "playcanvas")]),
-          probe("jl90x1_it3000", "held", JLS + "demo_probe_results.txt"),
-          probe("both_seed0_jl3000", "held", JLS + "fern_probe_results.txt"),
-          probe("jl90x1_it3000", "vs raw", JLS + "demo_probe_results.txt"),
-          probe("both_seed0_jl3000", "vs raw", JLS + "fern_probe_results.txt"),
-          grep(JLS + "demo_jl90x1_it3000/eval.md", r"raw vs ground truth \| ([\d.]+)"),
-          probe("jl90x1_it3000", "PSNR", JLS + "demo_probe_results.txt"),
-          grep(JLS + "fern_raw.log", r"held-out views \(3\): PSNR ([\d.]+)"),
-          probe("both_seed0_jl3000", "PSNR", JLS + "fern_probe_results.txt")),
+          *blind_and_costs("jl90x1_it3000", "both_seed0_jl3000", "demo_jl90x1_it3000")),
     Claim("\"present\" from frame {}; {} of {} frames \"present\" alone (mean {}% a frame), all together {} of 48 wrong, \"present\"; "
           "the raw model's recording \"absent\" ({} of 48); `detect` {} s a frame: H.264 takes more of the default's finer "
           "band than of the first default's | {} dB |",
